@@ -1,0 +1,67 @@
+#include "env_sampler.h"
+
+namespace ht {
+namespace {
+
+// Picks index i of n weights with probability w[i] / sum; returns that
+// probability. The last non-zero weight absorbs rounding.
+template <int N>
+int pickWeighted(const float* w, float u, float& prob) {
+  float sum = 0.0f;
+  for (int i = 0; i < N; ++i) sum += w[i];
+  float target = u * sum;
+  int last = 0;
+  float acc = 0.0f;
+  for (int i = 0; i < N; ++i) {
+    if (w[i] <= 0.0f) continue;
+    last = i;
+    acc += w[i];
+    if (target < acc) break;
+  }
+  prob = w[last] / sum;
+  return last;
+}
+
+}  // namespace
+
+EnvSample sampleEnvironment(const Environment& env, Rng& rng) {
+  const MaxAvgTree& t = env.tree;
+  if (!env.hasLight()) return {glm::vec3(0.0f, 1.0f, 0.0f), 0, 0.0f};
+  float prob;
+  uint64_t node = uint64_t(pickWeighted<12>(&t.avgv[0], rng.next(), prob));
+  double p = prob;
+  for (int level = 1; level <= t.order; ++level) {
+    uint64_t first = 4 * node;
+    node = first + uint64_t(pickWeighted<4>(&t.avgv[MaxAvgTree::levelOffset(level) + first], rng.next(), prob));
+    p *= prob;
+  }
+  float dx = rng.next(), dy = rng.next();
+  EnvSample s;
+  s.pixel = node;
+  s.dir = env.direction(env.order, node, dx, dy);
+  s.pdf = float(p / env.pixelSolidAngle());
+  return s;
+}
+
+double environmentPixelProbability(const Environment& env, uint64_t pixel) {
+  const MaxAvgTree& t = env.tree;
+  double p = 1.0;
+  for (int level = t.order; level >= 1; --level) {
+    const float* siblings = &t.avgv[MaxAvgTree::levelOffset(level) + (pixel & ~uint64_t(3))];
+    float sum = siblings[0] + siblings[1] + siblings[2] + siblings[3];
+    float w = siblings[pixel & 3];
+    if (w <= 0.0f) return 0.0;
+    p *= double(w / sum);
+    pixel >>= 2;
+  }
+  float sum = 0.0f;
+  for (int f = 0; f < 12; ++f) sum += t.avgv[f];
+  if (!(t.avgv[pixel] > 0.0f)) return 0.0;
+  return p * double(t.avgv[pixel] / sum);
+}
+
+float environmentPdf(const Environment& env, const glm::vec3& dir) {
+  return float(environmentPixelProbability(env, env.pixelOf(dir)) / env.pixelSolidAngle());
+}
+
+}  // namespace ht

@@ -1,0 +1,28 @@
+// Environment importance sampling by descending the average tree: the face is
+// chosen in proportion to its average luminance, then one child in four at
+// each level, then a uniform point inside the leaf pixel. The density is the
+// product of the choice probabilities over the pixel's solid angle, so it is
+// proportional to the luminance of L(w).
+#pragma once
+
+#include <cstdint>
+
+#include <glm/vec3.hpp>
+
+#include "environment.h"
+#include "rng.h"
+
+namespace ht {
+
+struct EnvSample {
+  glm::vec3 dir;
+  uint64_t pixel;
+  float pdf;  // solid-angle density
+};
+
+EnvSample sampleEnvironment(const Environment& env, Rng& rng);
+float environmentPdf(const Environment& env, const glm::vec3& dir);
+// Probability of choosing leaf `pixel` (discrete, sums to 1 over pixels).
+double environmentPixelProbability(const Environment& env, uint64_t pixel);
+
+}  // namespace ht

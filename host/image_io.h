@@ -1,0 +1,40 @@
+// HDR and preview image files: OpenEXR in, OpenEXR and PNG out.
+#pragma once
+
+#include <cstddef>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace ht {
+
+// Any failure that should end the program with a one-line message.
+struct Error : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Linear float RGB, row-major, top row first.
+struct ImageRGB {
+  int width = 0;
+  int height = 0;
+  std::vector<glm::vec3> pixels;
+
+  glm::vec3& at(int x, int y) { return pixels[size_t(y) * width + x]; }
+  const glm::vec3& at(int x, int y) const { return pixels[size_t(y) * width + x]; }
+};
+
+// Largest width or height accepted from a file; bigger images are refused
+// before anything is allocated.
+constexpr int kMaxImageDimension = 32768;
+
+// Reads scanline or tiled EXR, half or float, RGB or RGBA (Y only is read as
+// grey). Throws ht::Error with a one-line message on any problem.
+ImageRGB readExr(const std::string& path);
+// Writes linear float RGB (uncompressed-size ZIP). Throws ht::Error.
+void writeExr(const std::string& path, const ImageRGB& image);
+// Writes an 8-bit sRGB preview: value * 2^exposure, clamped, sRGB encoded.
+void writePng(const std::string& path, const ImageRGB& image, float exposure = 0.0f);
+
+}  // namespace ht

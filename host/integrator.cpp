@@ -1,0 +1,132 @@
+#include "integrator.h"
+
+#include <algorithm>
+#include <array>
+
+#include "env_sampler.h"
+#include "sampling.h"
+
+namespace ht {
+namespace {
+
+constexpr std::array kMethods = {
+    MethodInfo{Method::Uniform, "uniform", "uniform directions on the sphere"},
+    MethodInfo{Method::Cosine, "cosine", "cosine-weighted hemisphere around the normal"},
+    MethodInfo{Method::Env, "env", "environment importance from the average tree"},
+    MethodInfo{Method::Brdf, "brdf", "BRDF importance (cosine + Phong lobe or GGX visible normals)"},
+    MethodInfo{Method::Mis, "mis", "one env and one BRDF direction per sample, power heuristic"},
+};
+
+struct Shading {
+  const Scene& scene;
+  const ShadingPoint& sp;
+  Frame frame;
+  glm::vec3 woLocal;
+  glm::vec3 origin;
+  EstimateCounters& counters;
+
+  // f cos V for a direction whose radiance is already known.
+  glm::vec3 reflected(const glm::vec3& wi, const glm::vec3& radiance) {
+    if (radiance == glm::vec3(0.0f)) return glm::vec3(0.0f);
+    glm::vec3 fcos = evalBsdf(*sp.material, woLocal, frame.toLocal(wi));
+    if (fcos == glm::vec3(0.0f)) return fcos;
+    ++counters.shadowRays;
+    return occluded(scene, origin, wi) ? glm::vec3(0.0f) : fcos * radiance;
+  }
+  glm::vec3 reflected(const glm::vec3& wi) { return reflected(wi, scene.environment.eval(wi)); }
+};
+
+float powerHeuristic(float a, float b) {
+  float a2 = a * a, b2 = b * b;
+  return a2 / (a2 + b2);
+}
+
+}  // namespace
+
+std::span<const MethodInfo> allMethods() { return kMethods; }
+
+std::optional<Method> parseMethod(std::string_view name) {
+  for (const MethodInfo& m : kMethods)
+    if (name == m.name) return m.method;
+  return std::nullopt;
+}
+
+const char* methodName(Method m) {
+  for (const MethodInfo& info : kMethods)
+    if (info.method == m) return info.name;
+  return "?";
+}
+
+glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi) {
+  EstimateCounters unused;
+  Shading sh{scene, sp, Frame(sp.normal), {}, offsetRayOrigin(sp.position, sp.normal), unused};
+  sh.woLocal = sh.frame.toLocal(sp.wo);
+  return sh.reflected(wi, glm::vec3(1.0f));
+}
+
+glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
+                         EstimateCounters& counters) {
+  Shading sh{scene, sp, Frame(sp.normal), {}, offsetRayOrigin(sp.position, sp.normal), counters};
+  sh.woLocal = sh.frame.toLocal(sp.wo);
+  const Material& mat = *sp.material;
+  const Environment& env = scene.environment;
+  glm::dvec3 sum(0.0);
+
+  auto bsdfDirection = [&](float& pdf) {
+    glm::vec3 u(rng.next(), rng.next(), rng.next());
+    glm::vec3 local = sampleBsdf(mat, sh.woLocal, u);
+    pdf = bsdfPdf(mat, sh.woLocal, local);
+    return sh.frame.toWorld(local);
+  };
+
+  for (int i = 0; i < spp; ++i) {
+    glm::vec3 est(0.0f);
+    switch (method) {
+      case Method::Uniform: {
+        glm::vec3 wi = sampleUniformSphere({rng.next(), rng.next()});
+        est = sh.reflected(wi) / uniformSpherePdf();
+        ++counters.directions;
+        break;
+      }
+      case Method::Cosine: {
+        glm::vec3 local = sampleCosineHemisphere({rng.next(), rng.next()});
+        float pdf = cosineHemispherePdf(local.z);
+        if (pdf > 0.0f) est = sh.reflected(sh.frame.toWorld(local)) / pdf;
+        ++counters.directions;
+        break;
+      }
+      case Method::Env: {
+        EnvSample s = sampleEnvironment(env, rng);
+        if (s.pdf > 0.0f) est = sh.reflected(s.dir, env.radiance[s.pixel]) / s.pdf;
+        ++counters.directions;
+        break;
+      }
+      case Method::Brdf: {
+        float pdf;
+        glm::vec3 wi = bsdfDirection(pdf);
+        if (pdf > 0.0f) est = sh.reflected(wi) / pdf;
+        ++counters.directions;
+        break;
+      }
+      case Method::Mis: {
+        EnvSample s = sampleEnvironment(env, rng);
+        if (s.pdf > 0.0f) {
+          float pb = bsdfPdf(mat, sh.woLocal, sh.frame.toLocal(s.dir));
+          est += sh.reflected(s.dir, env.radiance[s.pixel]) * (powerHeuristic(s.pdf, pb) / s.pdf);
+        }
+        float pb;
+        glm::vec3 wi = bsdfDirection(pb);
+        if (pb > 0.0f) {
+          float pe = environmentPdf(env, wi);
+          est += sh.reflected(wi) * (powerHeuristic(pb, pe) / pb);
+        }
+        counters.directions += 2;
+        break;
+      }
+    }
+    sum += glm::dvec3(est);
+  }
+  return glm::vec3(sum / double(std::max(spp, 1)));
+}
+
+}  // namespace ht

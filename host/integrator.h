@@ -1,0 +1,50 @@
+// Direct illumination from the environment at one shading point:
+//   Lo = integral of L(w) f(wo, w) cos+(n, w) V(x, w) dw
+// estimated with one of the baseline samplers.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+
+#include <glm/vec3.hpp>
+
+#include "rng.h"
+#include "scene.h"
+
+namespace ht {
+
+enum class Method { Uniform, Cosine, Env, Brdf, Mis };
+
+struct MethodInfo {
+  Method method;
+  const char* name;
+  const char* description;
+};
+std::span<const MethodInfo> allMethods();
+std::optional<Method> parseMethod(std::string_view name);
+const char* methodName(Method m);
+
+struct ShadingPoint {
+  glm::vec3 position;
+  glm::vec3 normal;  // unit, on the side of wo
+  glm::vec3 wo;      // unit, towards the viewer
+  const Material* material;
+};
+
+struct EstimateCounters {
+  uint64_t directions = 0;  // directions drawn
+  uint64_t shadowRays = 0;
+};
+
+// f(wo, wi) cos+(n, wi) V(x, wi): the integrand without the radiance.
+glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi);
+
+// Mean of `spp` independent one-sample estimates (mis: one environment and
+// one BRDF direction per sample, power heuristic).
+glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
+                         EstimateCounters& counters);
+
+}  // namespace ht

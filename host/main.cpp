@@ -1,0 +1,175 @@
+// htrender command line.
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <tbb/info.h>
+
+#include "render.h"
+#include "scene.h"
+
+namespace fs = std::filesystem;
+using namespace ht;
+
+namespace {
+
+struct RenderOptions {
+  std::string scene = "data/scenes/spheres.json";
+  std::string method = "mis";
+  std::string device = "auto";
+  std::string out = "out/render.exr";
+  std::string stats;
+  int spp = 16;
+  int width = 0, height = 0;
+  uint32_t seed = 1;
+  float exposure = 0.0f;
+  bool quiet = false;
+};
+
+double secondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+std::string cpuName() {
+  std::ifstream in("/proc/cpuinfo");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  return "unknown CPU";
+}
+
+// A scene path that does not exist as given is looked up in the source tree,
+// so the defaults work from any directory.
+std::string resolveScene(const std::string& path) {
+  if (fs::exists(path) || fs::path(path).is_absolute()) return path;
+  fs::path alt = fs::path(HT_SOURCE_DIR) / path;
+  return fs::exists(alt) ? alt.string() : path;
+}
+
+void checkWritable(const std::string& path) {
+  fs::path p(path);
+  fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  if (!fs::is_directory(dir)) throw Error(fmt::format("{}: output directory does not exist", dir.string()));
+  if (access(dir.c_str(), W_OK) != 0) throw Error(fmt::format("{}: output directory is not writable", dir.string()));
+  if (fs::exists(p) && access(p.c_str(), W_OK) != 0) throw Error(fmt::format("{}: output file is not writable", path));
+}
+
+int runRender(const RenderOptions& o) {
+  auto method = parseMethod(o.method);
+  if (!method) {
+    std::string names;
+    for (const MethodInfo& m : allMethods()) names += std::string(names.empty() ? "" : ", ") + m.name;
+    throw Error(fmt::format("unknown method \"{}\" (one of: {})", o.method, names));
+  }
+  if (o.device == "gpu") throw Error("--device gpu: the Vulkan path is not part of this build yet; use --device cpu");
+  if (fs::path(o.out).extension() != ".exr") throw Error(fmt::format("{}: --out must end in .exr", o.out));
+  fs::path png = fs::path(o.out).replace_extension(".png");
+  checkWritable(o.out);
+  checkWritable(png.string());
+  if (!o.stats.empty()) checkWritable(o.stats);
+  if (o.device == "auto" && !o.quiet) std::fprintf(stderr, "device: cpu reference (no Vulkan path in this build)\n");
+
+  auto t0 = std::chrono::steady_clock::now();
+  Scene scene = readSceneFile(resolveScene(o.scene));
+  double tParse = secondsSince(t0);
+  t0 = std::chrono::steady_clock::now();
+  loadEnvironment(scene);
+  double tEnv = secondsSince(t0);
+  if (scene.environmentStats.clampedNegativeTexels > 0 && !o.quiet)
+    std::fprintf(stderr, "warning: %s: clamped %llu tiny negative texel value(s) to 0\n",
+                 scene.environmentDesc.file.c_str(), (unsigned long long)scene.environmentStats.clampedNegativeTexels);
+
+  RenderSettings rs;
+  rs.method = *method;
+  rs.spp = o.spp;
+  rs.seed = o.seed;
+  rs.width = o.width > 0 ? o.width : scene.width;
+  rs.height = o.height > 0 ? o.height : scene.height;
+  rs.progress = !o.quiet;
+  RenderResult r = renderCpu(scene, rs);
+
+  t0 = std::chrono::steady_clock::now();
+  writeExr(o.out, r.image);
+  writePng(png.string(), r.image, o.exposure);
+  double tWrite = secondsSince(t0);
+
+  double shaded = double(std::max<uint64_t>(r.shadedPixels, 1));
+  nlohmann::json stats = {
+      {"scene", scene.path},
+      {"method", methodName(rs.method)},
+      {"spp", rs.spp},
+      {"width", rs.width},
+      {"height", rs.height},
+      {"seed", rs.seed},
+      {"device", {{"type", "cpu"}, {"name", cpuName()}, {"threads", tbb::info::default_concurrency()}}},
+      {"environment",
+       {{"file", scene.environmentDesc.file},
+        {"nside", scene.environment.nside()},
+        {"clamped_negative_texels", scene.environmentStats.clampedNegativeTexels}}},
+      {"shaded_pixels", r.shadedPixels},
+      {"mean_samples_per_pixel", double(r.counters.directions) / shaded},
+      {"mean_shadow_rays_per_pixel", double(r.counters.shadowRays) / shaded},
+      {"seconds", {{"parse", tParse}, {"environment", tEnv}, {"render", r.seconds}, {"write", tWrite}}},
+      {"outputs", {o.out, png.string()}},
+  };
+  if (!o.stats.empty()) {
+    std::ofstream f(o.stats);
+    f << stats.dump(2) << "\n";
+    if (!f) throw Error(fmt::format("{}: cannot write stats", o.stats));
+  }
+  if (!o.quiet)
+    std::fprintf(stderr, "%s %d spp: %.3f s render, %.2f samples/pixel -> %s, %s\n", methodName(rs.method), rs.spp,
+                 r.seconds, double(r.counters.directions) / shaded, o.out.c_str(), png.string().c_str());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"htrender: product importance sampling of environment lighting by hierarchical thresholding"};
+  app.require_subcommand(1);
+
+  RenderOptions o;
+  CLI::App* render = app.add_subcommand("render", "render a scene to EXR + PNG preview");
+  render->add_option("--scene", o.scene, "scene JSON file")->capture_default_str();
+  render->add_option("--method", o.method, "sampling method (see `htrender methods`)")->capture_default_str();
+  render->add_option("--spp", o.spp, "samples per pixel")->check(CLI::Range(1, 1 << 20))->capture_default_str();
+  render->add_option("--device", o.device, "cpu | gpu | auto")
+      ->check(CLI::IsMember({"cpu", "gpu", "auto"}))
+      ->capture_default_str();
+  render->add_option("--width", o.width, "image width (default: the scene's)")->check(CLI::Range(1, 16384));
+  render->add_option("--height", o.height, "image height (default: the scene's)")->check(CLI::Range(1, 16384));
+  render->add_option("--seed", o.seed, "random seed")->capture_default_str();
+  render->add_option("--out", o.out, "output EXR; the PNG preview goes next to it")->capture_default_str();
+  render->add_option("--stats", o.stats, "write timings and counts as JSON");
+  render->add_option("--exposure", o.exposure, "PNG preview exposure in stops")->capture_default_str();
+  render->add_flag("--quiet,-q", o.quiet, "no progress or summary on stderr");
+
+  CLI::App* methods = app.add_subcommand("methods", "list the sampling methods");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    if (*methods) {
+      for (const MethodInfo& m : allMethods()) std::printf("%-10s %s\n", m.name, m.description);
+      return 0;
+    }
+    return runRender(o);
+  } catch (const Error& e) {
+    std::fprintf(stderr, "htrender: error: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "htrender: internal error: %s\n", e.what());
+    return 2;
+  }
+}

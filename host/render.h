@@ -1,0 +1,35 @@
+// The CPU reference renderer: one primary ray through each pixel centre,
+// direct illumination from the environment at the first hit, the environment
+// itself where the ray escapes.
+#pragma once
+
+#include <cstdint>
+
+#include "image_io.h"
+#include "integrator.h"
+#include "scene.h"
+
+namespace ht {
+
+struct RenderSettings {
+  Method method = Method::Mis;
+  int spp = 16;
+  uint32_t seed = 1;
+  int width = 512;
+  int height = 288;
+  bool progress = false;  // percentage on stderr
+};
+
+struct RenderResult {
+  ImageRGB image;
+  double seconds = 0.0;
+  uint64_t shadedPixels = 0;
+  EstimateCounters counters;
+};
+
+// Random stream of a pixel: the same for every method, device and thread count.
+inline uint32_t pixelStream(int x, int y, int width) { return uint32_t(y) * uint32_t(width) + uint32_t(x); }
+
+RenderResult renderCpu(const Scene& scene, const RenderSettings& settings);
+
+}  // namespace ht

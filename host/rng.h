@@ -1,0 +1,33 @@
+// Stateless, counter-based random numbers: the same (seed, stream) gives the
+// same sequence on every thread and, later, in the shaders.
+#pragma once
+
+#include <cstdint>
+
+namespace ht {
+
+// PCG-RXS-M-XS 32-bit output permutation used as a hash (Jarzynski & Olano,
+// "Hash Functions for GPU Rendering", JCGT 2020).
+inline uint32_t pcgHash(uint32_t v) {
+  uint32_t state = v * 747796405u + 2891336453u;
+  uint32_t word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+  return (word >> 22u) ^ word;
+}
+
+inline uint32_t hashCombine(uint32_t a, uint32_t b) { return pcgHash(a ^ pcgHash(b)); }
+
+struct Rng {
+  uint32_t state;
+
+  Rng(uint32_t seed, uint32_t stream) : state(hashCombine(seed, stream)) {}
+
+  uint32_t nextUint() {
+    state = state * 747796405u + 2891336453u;
+    uint32_t word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+  }
+  // Uniform in [0, 1): 24 random mantissa bits, never 1.
+  float next() { return float(nextUint() >> 8) * 0x1p-24f; }
+};
+
+}  // namespace ht

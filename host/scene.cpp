@@ -1,0 +1,322 @@
+#include "scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string_view>
+#include <vector>
+#include <limits>
+#include <sstream>
+
+#include <fmt/format.h>
+#include <glm/geometric.hpp>
+#include <nlohmann/json.hpp>
+
+#include "healpix.h"
+#include "sampling.h"
+
+namespace ht {
+namespace {
+
+using json = nlohmann::json;
+
+// Validates one JSON object: known keys only, typed getters with ranges.
+class Obj {
+ public:
+  Obj(const json& j, std::string where, const std::vector<std::string_view>& keys) : j_(j), where_(std::move(where)) {
+    if (!j.is_object()) fail("must be an object");
+    for (auto it = j.begin(); it != j.end(); ++it)
+      if (std::find(keys.begin(), keys.end(), it.key()) == keys.end())
+        fail(fmt::format("unknown key \"{}\"", it.key()));
+  }
+
+  bool has(const char* key) const { return j_.contains(key); }
+  const json& at(const char* key) const {
+    if (!has(key)) fail(fmt::format("missing key \"{}\"", key));
+    return j_.at(key);
+  }
+  std::string path(const char* key) const { return where_ + "." + key; }
+
+  float number(const char* key, float lo, float hi, bool openLo = false) const {
+    const json& v = at(key);
+    if (!v.is_number()) fail(fmt::format("\"{}\" must be a number", key));
+    double x = v.get<double>();
+    if (!std::isfinite(x) || x < lo || x > hi || (openLo && x == lo))
+      fail(fmt::format("\"{}\" = {} is out of range {}{}, {}]", key, x, openLo ? "(" : "[", lo, hi));
+    return float(x);
+  }
+  float number(const char* key, float lo, float hi, float fallback, bool openLo = false) const {
+    return has(key) ? number(key, lo, hi, openLo) : fallback;
+  }
+  int integer(const char* key, int lo, int hi, int fallback) const {
+    if (!has(key)) return fallback;
+    const json& v = j_.at(key);
+    if (!v.is_number_integer()) fail(fmt::format("\"{}\" must be an integer", key));
+    auto x = v.get<int64_t>();
+    if (x < lo || x > hi) fail(fmt::format("\"{}\" = {} is out of range [{}, {}]", key, x, lo, hi));
+    return int(x);
+  }
+  std::string string(const char* key) const {
+    const json& v = at(key);
+    if (!v.is_string()) fail(fmt::format("\"{}\" must be a string", key));
+    return v.get<std::string>();
+  }
+  glm::vec3 vec3(const char* key) const {
+    const json& v = at(key);
+    if (!v.is_array() || v.size() != 3 || !std::all_of(v.begin(), v.end(), [](const json& e) { return e.is_number(); }))
+      fail(fmt::format("\"{}\" must be an array of 3 numbers", key));
+    glm::vec3 r(v[0].get<float>(), v[1].get<float>(), v[2].get<float>());
+    if (!std::isfinite(r.x) || !std::isfinite(r.y) || !std::isfinite(r.z))
+      fail(fmt::format("\"{}\" must be finite", key));
+    return r;
+  }
+  // An RGB colour with components in [lo, hi]; a single number means grey.
+  glm::vec3 colour(const char* key, float lo, float hi) const {
+    const json& v = at(key);
+    glm::vec3 c = v.is_number() ? glm::vec3(number(key, lo, hi)) : vec3(key);
+    for (int i = 0; i < 3; ++i)
+      if (c[i] < lo || c[i] > hi) fail(fmt::format("\"{}\" components must lie in [{}, {}]", key, lo, hi));
+    return c;
+  }
+  glm::vec3 colour(const char* key, float lo, float hi, glm::vec3 fallback) const {
+    return has(key) ? colour(key, lo, hi) : fallback;
+  }
+
+  [[noreturn]] void fail(const std::string& what) const { throw Error(fmt::format("{}: {}", where_, what)); }
+
+ private:
+  const json& j_;
+  std::string where_;
+};
+
+Material parseMaterial(const Obj& m, const std::string& type) {
+  Material mat;
+  if (type == "lambert") {
+    mat.type = MaterialType::Lambert;
+    mat.diffuse = m.colour("albedo", 0.0f, 1.0f);
+  } else if (type == "phong") {
+    mat.type = MaterialType::Phong;
+    mat.specular = m.colour("specular", 0.0f, 1.0f);
+    mat.exponent = m.number("exponent", 0.0f, 1e6f, true);
+    mat.diffuse = m.colour("diffuse", 0.0f, 1.0f, glm::vec3(0.0f));
+  } else if (type == "ggx") {
+    mat.type = MaterialType::Ggx;
+    mat.alpha = m.number("alpha", 0.0f, 1.0f, true);
+    if (m.has("f0") == m.has("conductor")) m.fail("ggx needs exactly one of \"f0\" and \"conductor\"");
+    mat.specular = m.has("f0") ? m.colour("f0", 0.0f, 1.0f) : m.colour("conductor", 0.0f, 1.0f);
+    mat.diffuse = m.colour("diffuse", 0.0f, 1.0f, glm::vec3(0.0f));
+  } else {
+    m.fail(fmt::format("unknown material type \"{}\" (lambert, phong, ggx)", type));
+  }
+  return mat;
+}
+
+std::string lineColumn(const std::string& text, size_t byte) {
+  size_t line = 1, col = 1;
+  for (size_t i = 0; i < std::min(byte, text.size()); ++i) {
+    if (text[i] == '\n') {
+      ++line;
+      col = 1;
+    } else {
+      ++col;
+    }
+  }
+  return fmt::format("line {}, column {}", line, col);
+}
+
+}  // namespace
+
+Scene parseScene(const std::string& text, const std::string& path) {
+  json root;
+  try {
+    root = json::parse(text);
+  } catch (const json::parse_error& e) {
+    std::string msg = e.what();
+    auto colon = msg.rfind(": ");
+    throw Error(fmt::format("{}: JSON syntax error at {}: {}", path, lineColumn(text, e.byte ? e.byte - 1 : 0),
+                            colon == std::string::npos ? msg : msg.substr(colon + 2)));
+  }
+  Scene scene;
+  scene.path = path;
+  Obj top(root, path, {"camera", "image", "environment", "materials", "spheres", "planes"});
+
+  Obj cam(top.at("camera"), path + ": camera", {"position", "look_at", "up", "fov"});
+  scene.camera.position = cam.vec3("position");
+  scene.camera.lookAt = cam.vec3("look_at");
+  scene.camera.up = cam.has("up") ? cam.vec3("up") : glm::vec3(0, 1, 0);
+  scene.camera.fovY = cam.number("fov", 0.0f, 179.0f, 40.0f, true);
+  glm::vec3 forward = scene.camera.lookAt - scene.camera.position;
+  if (glm::length(forward) < 1e-6f) cam.fail("position and look_at coincide");
+  if (glm::length(scene.camera.up) < 1e-6f ||
+      glm::length(glm::cross(glm::normalize(forward), glm::normalize(scene.camera.up))) < 1e-4f)
+    cam.fail("up must be non-zero and not parallel to the view direction");
+
+  if (top.has("image")) {
+    Obj img(top.at("image"), path + ": image", {"width", "height"});
+    scene.width = img.integer("width", 1, 16384, scene.width);
+    scene.height = img.integer("height", 1, 16384, scene.height);
+  }
+
+  Obj env(top.at("environment"), path + ": environment", {"file", "nside", "yaw", "scale"});
+  scene.environmentDesc.file = env.string("file");
+  if (scene.environmentDesc.file.empty()) env.fail("\"file\" is empty");
+  int nside = env.integer("nside", 1, 1 << healpix::kMaxOrder, 256);
+  if ((nside & (nside - 1)) != 0) env.fail(fmt::format("\"nside\" = {} is not a power of two", nside));
+  scene.environmentDesc.nside = nside;
+  scene.environmentDesc.yaw = env.number("yaw", -360.0f, 360.0f, 0.0f);
+  scene.environmentDesc.scale = env.number("scale", 0.0f, 1e9f, 1.0f);
+
+  const json& mats = top.at("materials");
+  if (!mats.is_object() || mats.empty()) top.fail("\"materials\" must be a non-empty object of named materials");
+  for (auto it = mats.begin(); it != mats.end(); ++it) {
+    std::string where = fmt::format("{}: materials.{}", path, it.key());
+    if (!it->is_object() || !it->contains("type") || !(*it)["type"].is_string())
+      throw Error(where + ": must be an object with a string \"type\"");
+    std::string type = (*it)["type"].get<std::string>();
+    std::vector<std::string_view> keys = {"type"};
+    if (type == "lambert") keys = {"type", "albedo"};
+    if (type == "phong") keys = {"type", "specular", "exponent", "diffuse"};
+    if (type == "ggx") keys = {"type", "alpha", "f0", "conductor", "diffuse"};
+    scene.materials.push_back(parseMaterial(Obj(*it, where, keys), type));
+    scene.materialNames.push_back(it.key());
+  }
+  auto materialIndex = [&](const Obj& o) {
+    std::string name = o.string("material");
+    auto it = std::find(scene.materialNames.begin(), scene.materialNames.end(), name);
+    if (it == scene.materialNames.end()) o.fail(fmt::format("unknown material \"{}\"", name));
+    return int(it - scene.materialNames.begin());
+  };
+
+  auto list = [&](const char* key) -> const json& {
+    static const json empty = json::array();
+    if (!top.has(key)) return empty;
+    const json& a = top.at(key);
+    if (!a.is_array()) top.fail(fmt::format("\"{}\" must be an array", key));
+    return a;
+  };
+  const json& spheres = list("spheres");
+  for (size_t i = 0; i < spheres.size(); ++i) {
+    Obj s(spheres[i], fmt::format("{}: spheres[{}]", path, i), {"center", "radius", "material"});
+    scene.spheres.push_back({s.vec3("center"), s.number("radius", 0.0f, 1e6f, true), materialIndex(s)});
+  }
+  const json& planes = list("planes");
+  for (size_t i = 0; i < planes.size(); ++i) {
+    Obj p(planes[i], fmt::format("{}: planes[{}]", path, i), {"point", "normal", "material"});
+    glm::vec3 n = p.vec3("normal");
+    if (glm::length(n) < 1e-6f) p.fail("\"normal\" must be non-zero");
+    scene.planes.push_back({p.vec3("point"), glm::normalize(n), materialIndex(p)});
+  }
+  if (scene.spheres.empty() && scene.planes.empty()) top.fail("the scene has no spheres and no planes");
+  return scene;
+}
+
+Scene readSceneFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(fmt::format("{}: cannot open scene file", path));
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parseScene(ss.str(), path);
+}
+
+void loadEnvironment(Scene& scene) {
+  namespace fs = std::filesystem;
+  fs::path file = scene.environmentDesc.file;
+  if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
+  ImageRGB image = readExr(file.string());
+  scene.environmentStats = sanitizeEnvironmentImage(image, file.string());
+  int order = std::countr_zero(unsigned(scene.environmentDesc.nside));
+  scene.environment =
+      environmentFromEquirect(image, order, scene.environmentDesc.yaw, scene.environmentDesc.scale);
+}
+
+Ray cameraRay(const Camera& c, int width, int height, float px, float py) {
+  glm::vec3 w = glm::normalize(c.lookAt - c.position);
+  glm::vec3 u = glm::normalize(glm::cross(w, c.up));
+  glm::vec3 v = glm::cross(u, w);
+  float tanHalf = std::tan(0.5f * c.fovY * kPi / 180.0f);
+  float aspect = float(width) / float(height);
+  float sx = (2.0f * px / float(width) - 1.0f) * tanHalf * aspect;
+  float sy = (1.0f - 2.0f * py / float(height)) * tanHalf;
+  return {c.position, glm::normalize(w + sx * u + sy * v)};
+}
+
+namespace {
+
+// Ray/sphere with the numerically careful discriminant of Haines et al.
+// (Ray Tracing Gems, ch. 7): distances measured from the sphere's centre.
+bool hitSphere(const Sphere& s, const Ray& ray, float tMin, float tMax, float& t) {
+  glm::vec3 f = ray.origin - s.center;
+  float b = -glm::dot(f, ray.dir);
+  glm::vec3 l = f + b * ray.dir;
+  float disc = s.radius * s.radius - glm::dot(l, l);
+  if (disc < 0.0f) return false;
+  float c = glm::dot(f, f) - s.radius * s.radius;
+  float q = b + std::copysign(std::sqrt(disc), b);
+  float t0 = q != 0.0f ? c / q : 0.0f;
+  float t1 = q;
+  if (t0 > t1) std::swap(t0, t1);
+  if (t0 > tMin && t0 < tMax) {
+    t = t0;
+    return true;
+  }
+  if (t1 > tMin && t1 < tMax) {
+    t = t1;
+    return true;
+  }
+  return false;
+}
+
+bool hitPlane(const Plane& p, const Ray& ray, float tMin, float tMax, float& t) {
+  float denom = glm::dot(p.normal, ray.dir);
+  if (denom == 0.0f) return false;
+  float tt = glm::dot(p.point - ray.origin, p.normal) / denom;
+  if (!(tt > tMin && tt < tMax)) return false;
+  t = tt;
+  return true;
+}
+
+}  // namespace
+
+bool intersectScene(const Scene& scene, const Ray& ray, float tMin, float tMax, Hit& hit) {
+  bool any = false;
+  float t;
+  for (const Sphere& s : scene.spheres)
+    if (hitSphere(s, ray, tMin, tMax, t)) {
+      tMax = t;
+      any = true;
+      hit.t = t;
+      hit.position = ray.origin + t * ray.dir;
+      hit.normal = glm::normalize(hit.position - s.center);
+      hit.material = s.material;
+    }
+  for (const Plane& p : scene.planes)
+    if (hitPlane(p, ray, tMin, tMax, t)) {
+      tMax = t;
+      any = true;
+      hit.t = t;
+      hit.position = ray.origin + t * ray.dir;
+      hit.normal = p.normal;
+      hit.material = p.material;
+    }
+  if (any && glm::dot(hit.normal, ray.dir) > 0.0f) hit.normal = -hit.normal;
+  return any;
+}
+
+bool occluded(const Scene& scene, const glm::vec3& origin, const glm::vec3& dir) {
+  Ray ray{origin, dir};
+  const float tMax = std::numeric_limits<float>::infinity();
+  float t;
+  for (const Sphere& s : scene.spheres)
+    if (hitSphere(s, ray, 0.0f, tMax, t)) return true;
+  for (const Plane& p : scene.planes)
+    if (hitPlane(p, ray, 0.0f, tMax, t)) return true;
+  return false;
+}
+
+glm::vec3 offsetRayOrigin(const glm::vec3& p, const glm::vec3& n) {
+  float scale = 1.0f + std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+  return p + n * (1e-4f * scale);
+}
+
+}  // namespace ht

@@ -1,0 +1,136 @@
+// Shared set-up for estimator tests: shading points with a known integral
+// (brute force over every HEALPix pixel) and independent repeated estimates.
+#pragma once
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <glm/geometric.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/combinable.h>
+#include <tbb/parallel_for.h>
+
+#include "healpix.h"
+#include "integrator.h"
+#include "scene.h"
+
+namespace ht::test {
+
+// Two-sided normal quantile for the z-test: z such that P(|Z| > z) = alpha.
+inline double normalQuantileTwoSided(double alpha) {
+  // Bisection on erfc: robust and plenty fast for a handful of calls.
+  double lo = 0.0, hi = 40.0;
+  for (int i = 0; i < 200; ++i) {
+    double mid = 0.5 * (lo + hi);
+    (std::erfc(mid / std::sqrt(2.0)) > alpha ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+inline Material lambert(float albedo) {
+  Material m;
+  m.type = MaterialType::Lambert;
+  m.diffuse = glm::vec3(albedo);
+  return m;
+}
+
+inline Material ggx(float alpha, glm::vec3 f0, glm::vec3 diffuse = glm::vec3(0.0f)) {
+  Material m;
+  m.type = MaterialType::Ggx;
+  m.alpha = alpha;
+  m.specular = f0;
+  m.diffuse = diffuse;
+  return m;
+}
+
+inline Material phong(float exponent, glm::vec3 ks, glm::vec3 diffuse = glm::vec3(0.0f)) {
+  Material m;
+  m.type = MaterialType::Phong;
+  m.exponent = exponent;
+  m.specular = ks;
+  m.diffuse = diffuse;
+  return m;
+}
+
+// A shading point at the origin on the plane y = 0 (normal +y), lit by `env`,
+// optionally shadowed by spheres.
+struct Setup {
+  std::string name;
+  Scene scene;
+  ShadingPoint sp;
+};
+
+inline Setup makeSetup(std::string name, Environment env, Material material, glm::vec3 wo,
+                       std::vector<Sphere> occluders = {}) {
+  Setup s;
+  s.name = std::move(name);
+  s.scene.materials = {material, lambert(0.5f)};
+  for (Sphere& o : occluders) o.material = 1;
+  s.scene.spheres = std::move(occluders);
+  s.scene.planes = {{glm::vec3(0.0f), glm::vec3(0, 1, 0), 0}};
+  s.scene.environment = std::move(env);
+  s.sp = {glm::vec3(0.0f), glm::vec3(0, 1, 0), glm::normalize(wo), nullptr};
+  return s;
+}
+
+// The exact integral of the piecewise-constant environment against f cos V,
+// each pixel's share integrated on a sub x sub grid of area-uniform points.
+inline glm::dvec3 bruteForceIntegral(const Setup& s, int sub) {
+  const Environment& env = s.scene.environment;
+  ShadingPoint sp = s.sp;
+  sp.material = &s.scene.materials[0];
+  tbb::combinable<glm::dvec3> partial([] { return glm::dvec3(0.0); });
+  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, env.radiance.size()), [&](const auto& r) {
+    glm::dvec3& acc = partial.local();
+    for (uint64_t p = r.begin(); p != r.end(); ++p) {
+      if (env.radiance[p] == glm::vec3(0.0f)) continue;
+      glm::dvec3 sum(0.0);
+      for (int j = 0; j < sub; ++j)
+        for (int i = 0; i < sub; ++i) {
+          glm::vec3 wi = env.direction(env.order, p, (i + 0.5f) / sub, (j + 0.5f) / sub);
+          sum += glm::dvec3(visibleReflectance(s.scene, sp, wi));
+        }
+      acc += sum * glm::dvec3(env.radiance[p]) * (env.pixelSolidAngle() / (sub * sub));
+    }
+  });
+  return partial.combine([](glm::dvec3 a, glm::dvec3 b) { return a + b; });
+}
+
+struct MeanAndError {
+  glm::dvec3 mean;
+  glm::dvec3 stdError;
+};
+
+// `batches` independent estimates of `spp` samples each, streams 0..batches-1.
+inline MeanAndError repeatedEstimates(const Setup& s, Method method, int batches, int spp, uint32_t seed) {
+  ShadingPoint sp = s.sp;
+  sp.material = &s.scene.materials[0];
+  struct Acc {
+    glm::dvec3 sum{0.0}, sumSq{0.0};
+  };
+  tbb::combinable<Acc> partial;
+  tbb::parallel_for(tbb::blocked_range<int>(0, batches), [&](const auto& r) {
+    Acc& a = partial.local();
+    EstimateCounters counters;
+    for (int b = r.begin(); b != r.end(); ++b) {
+      Rng rng(seed, uint32_t(b));
+      glm::dvec3 e(estimateDirect(s.scene, sp, method, spp, rng, counters));
+      a.sum += e;
+      a.sumSq += e * e;
+    }
+  });
+  Acc total;
+  partial.combine_each([&](const Acc& a) {
+    total.sum += a.sum;
+    total.sumSq += a.sumSq;
+  });
+  MeanAndError r;
+  double n = batches;
+  r.mean = total.sum / n;
+  glm::dvec3 var = glm::max(glm::dvec3(0.0), (total.sumSq / n - r.mean * r.mean) * (n / (n - 1.0)));
+  r.stdError = glm::sqrt(var / n);
+  return r;
+}
+
+}  // namespace ht::test
