@@ -14,18 +14,6 @@ namespace {
 
 constexpr double kPiD = 3.14159265358979323846;
 
-// World (y-up) -> HEALPix frame (pole = world +y), after undoing the yaw.
-glm::dvec3 worldToHealpix(const Environment& env, const glm::vec3& w) {
-  double x = double(env.cosYaw) * w.x - double(env.sinYaw) * w.z;
-  double z = double(env.sinYaw) * w.x + double(env.cosYaw) * w.z;
-  return {z, x, double(w.y)};
-}
-
-glm::vec3 healpixToWorld(const Environment& env, const glm::dvec3& h) {
-  double x = h.y, z = h.x;
-  return glm::vec3(float(env.cosYaw * x + env.sinYaw * z), float(h.z), float(-env.sinYaw * x + env.cosYaw * z));
-}
-
 void finish(Environment& env) {
   std::vector<float> lum(env.radiance.size());
   for (size_t i = 0; i < lum.size(); ++i) lum[i] = luminance(env.radiance[i]);
@@ -40,12 +28,24 @@ void setYaw(Environment& env, float yawDegrees) {
 
 }  // namespace
 
+// World (y-up) -> HEALPix frame (pole = world +y), after undoing the yaw.
+glm::dvec3 Environment::toHealpixFrame(const glm::vec3& w) const {
+  double x = double(cosYaw) * w.x - double(sinYaw) * w.z;
+  double z = double(sinYaw) * w.x + double(cosYaw) * w.z;
+  return {z, x, double(w.y)};
+}
+
+glm::vec3 Environment::fromHealpixFrame(const glm::dvec3& h) const {
+  double x = h.y, z = h.x;
+  return glm::vec3(float(cosYaw * x + sinYaw * z), float(h.z), float(-sinYaw * x + cosYaw * z));
+}
+
 uint64_t Environment::pixelOf(const glm::vec3& worldDir) const {
-  return healpix::vecToPix(order, worldToHealpix(*this, worldDir));
+  return healpix::vecToPix(order, toHealpixFrame(worldDir));
 }
 
 glm::vec3 Environment::direction(int level, uint64_t pix, float dx, float dy) const {
-  return healpixToWorld(*this, healpix::pixToVec(level, pix, dx, dy));
+  return fromHealpixFrame(healpix::pixToVec(level, pix, dx, dy));
 }
 
 double Environment::pixelSolidAngle() const { return healpix::pixelSolidAngle(order); }

@@ -37,6 +37,9 @@ struct Environment {
   int nside() const { return 1 << order; }
   uint64_t pixelOf(const glm::vec3& worldDir) const;
   glm::vec3 eval(const glm::vec3& worldDir) const { return radiance[pixelOf(worldDir)]; }
+  // The HEALPix frame of the map (pole = world +y, yaw undone) and back.
+  glm::dvec3 toHealpixFrame(const glm::vec3& worldDir) const;
+  glm::vec3 fromHealpixFrame(const glm::dvec3& h) const;
   // World direction of the point (dx, dy) in [0,1]^2 inside a pixel.
   glm::vec3 direction(int level, uint64_t pix, float dx, float dy) const;
   double pixelSolidAngle() const;

@@ -30,8 +30,11 @@ constexpr double pixelSolidAngle(int order) {
 }
 
 // (z = cos theta, phi) -> nested index. phi in any range (wrapped).
+// Bit-identical to chealpix's ang2pix_nest for |z| <= 0.99; nearer the
+// poles chealpix uses sin(theta), which (z, phi) cannot carry.
 uint64_t zphiToPix(int order, double z, double phi);
-// Unit (or any non-zero) vector -> nested index.
+// Unit (or any non-zero) vector -> nested index. Bit-identical to
+// chealpix's vec2pix_nest64 (uses sin(theta) from x, y near the poles).
 uint64_t vecToPix(int order, const glm::dvec3& v);
 
 // Face coordinates: (x, y) in [0, 1]^2 over a base face, x along the

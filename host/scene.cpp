@@ -100,14 +100,12 @@ Material parseMaterial(const Obj& m, const std::string& type) {
     mat.specular = m.colour("specular", 0.0f, 1.0f);
     mat.exponent = m.number("exponent", 0.0f, 1e6f, true);
     mat.diffuse = m.colour("diffuse", 0.0f, 1.0f, glm::vec3(0.0f));
-  } else if (type == "ggx") {
+  } else {
     mat.type = MaterialType::Ggx;
     mat.alpha = m.number("alpha", 0.0f, 1.0f, true);
     if (m.has("f0") == m.has("conductor")) m.fail("ggx needs exactly one of \"f0\" and \"conductor\"");
     mat.specular = m.has("f0") ? m.colour("f0", 0.0f, 1.0f) : m.colour("conductor", 0.0f, 1.0f);
     mat.diffuse = m.colour("diffuse", 0.0f, 1.0f, glm::vec3(0.0f));
-  } else {
-    m.fail(fmt::format("unknown material type \"{}\" (lambert, phong, ggx)", type));
   }
   return mat;
 }
@@ -174,10 +172,11 @@ Scene parseScene(const std::string& text, const std::string& path) {
     if (!it->is_object() || !it->contains("type") || !(*it)["type"].is_string())
       throw Error(where + ": must be an object with a string \"type\"");
     std::string type = (*it)["type"].get<std::string>();
-    std::vector<std::string_view> keys = {"type"};
+    std::vector<std::string_view> keys;
     if (type == "lambert") keys = {"type", "albedo"};
-    if (type == "phong") keys = {"type", "specular", "exponent", "diffuse"};
-    if (type == "ggx") keys = {"type", "alpha", "f0", "conductor", "diffuse"};
+    else if (type == "phong") keys = {"type", "specular", "exponent", "diffuse"};
+    else if (type == "ggx") keys = {"type", "alpha", "f0", "conductor", "diffuse"};
+    else throw Error(fmt::format("{}: unknown material type \"{}\" (lambert, phong, ggx)", where, type));
     scene.materials.push_back(parseMaterial(Obj(*it, where, keys), type));
     scene.materialNames.push_back(it.key());
   }

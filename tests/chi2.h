@@ -186,7 +186,8 @@ inline std::vector<double> expectedCountsHealpix(int binOrder, int subdiv,
                                                  std::function<double(glm::dvec3)> pdf,
                                                  double sampleCount) {
   const uint64_t bins = healpix::pixelCount(binOrder);
-  const double weight = sampleCount * healpix::pixelSolidAngle(binOrder) / (double(subdiv) * subdiv);
+  const double weight =
+      sampleCount * healpix::pixelSolidAngle(binOrder) / (double(subdiv) * subdiv);
   std::vector<double> expected(bins);
   for (uint64_t p = 0; p < bins; ++p) {
     double sum = 0.0;

@@ -55,15 +55,15 @@ inline Material phong(float exponent, glm::vec3 ks, glm::vec3 diffuse = glm::vec
 
 // A shading point at the origin on the plane y = 0 (normal +y), lit by `env`,
 // optionally shadowed by spheres.
-struct Setup {
+struct ShadingSetup {
   std::string name;
   Scene scene;
   ShadingPoint sp;
 };
 
-inline Setup makeSetup(std::string name, Environment env, Material material, glm::vec3 wo,
+inline ShadingSetup makeSetup(std::string name, Environment env, Material material, glm::vec3 wo,
                        std::vector<Sphere> occluders = {}) {
-  Setup s;
+  ShadingSetup s;
   s.name = std::move(name);
   s.scene.materials = {material, lambert(0.5f)};
   for (Sphere& o : occluders) o.material = 1;
@@ -76,7 +76,7 @@ inline Setup makeSetup(std::string name, Environment env, Material material, glm
 
 // The exact integral of the piecewise-constant environment against f cos V,
 // each pixel's share integrated on a sub x sub grid of area-uniform points.
-inline glm::dvec3 bruteForceIntegral(const Setup& s, int sub) {
+inline glm::dvec3 bruteForceIntegral(const ShadingSetup& s, int sub) {
   const Environment& env = s.scene.environment;
   ShadingPoint sp = s.sp;
   sp.material = &s.scene.materials[0];
@@ -103,7 +103,7 @@ struct MeanAndError {
 };
 
 // `batches` independent estimates of `spp` samples each, streams 0..batches-1.
-inline MeanAndError repeatedEstimates(const Setup& s, Method method, int batches, int spp, uint32_t seed) {
+inline MeanAndError repeatedEstimates(const ShadingSetup& s, Method method, int batches, int spp, uint32_t seed) {
   ShadingPoint sp = s.sp;
   sp.material = &s.scene.materials[0];
   struct Acc {

@@ -59,7 +59,7 @@ TEST(Scene, ErrorsNameTheProblem) {
     std::string text, expect;
   };
   const Case cases[] = {
-      {edit("\"m\"}]", "\"m\"}"), "line 5, column"},
+      {edit("\"m\"}]", "\"m\"}"), "line 6, column 1"},
       {edit("\"radius\": 1", "\"radius\": -1"), "spheres[0]: \"radius\" = -1 is out of range"},
       {edit("\"radius\": 1", "\"radius\": \"big\""), "\"radius\" must be a number"},
       {edit("\"radius\": 1", "\"radius\": 1, \"colour\": 3"), "unknown key \"colour\""},
