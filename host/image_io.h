@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -36,5 +37,14 @@ ImageRGB readExr(const std::string& path);
 void writeExr(const std::string& path, const ImageRGB& image);
 // Writes an 8-bit sRGB preview: value * 2^exposure, clamped, sRGB encoded.
 void writePng(const std::string& path, const ImageRGB& image, float exposure = 0.0f);
+
+// Error of `test` against `ref` over all pixels and channels.
+struct ImageError {
+  double rmse = 0.0;             // sqrt(mean (t - r)^2)
+  double relMse = 0.0;           // mean (t - r)^2 / (r^2 + 1e-2)
+  double meanAbsRelError = 0.0;  // mean |t - r| / (|r| + 1e-2)
+  uint64_t pixels = 0;
+};
+ImageError compareImages(const ImageRGB& ref, const ImageRGB& test);
 
 }  // namespace ht

@@ -74,7 +74,6 @@ int runRender(const RenderOptions& o) {
   checkWritable(o.out);
   checkWritable(png.string());
   if (!o.stats.empty()) checkWritable(o.stats);
-  if (o.device == "auto" && !o.quiet) std::fprintf(stderr, "device: cpu reference (no Vulkan path in this build)\n");
 
   auto t0 = std::chrono::steady_clock::now();
   Scene scene = readSceneFile(resolveScene(o.scene));
@@ -86,6 +85,7 @@ int runRender(const RenderOptions& o) {
     std::fprintf(stderr, "warning: %s: clamped %llu tiny negative texel value(s) to 0\n",
                  scene.environmentDesc.file.c_str(), (unsigned long long)scene.environmentStats.clampedNegativeTexels);
 
+  if (o.device == "auto" && !o.quiet) std::fprintf(stderr, "device: cpu reference (no Vulkan path in this build)\n");
   RenderSettings rs;
   rs.method = *method;
   rs.spp = o.spp;
@@ -154,14 +154,35 @@ int main(int argc, char** argv) {
 
   CLI::App* methods = app.add_subcommand("methods", "list the sampling methods");
 
+  std::string refPath, testPath;
+  CLI::App* compare = app.add_subcommand("compare", "error of an image against a reference, as JSON");
+  compare->add_option("--ref", refPath, "reference EXR")->required();
+  compare->add_option("--test", testPath, "EXR to measure")->required();
+
   try {
     app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
+  } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "htrender: error: %s (see --help)\n", e.what());
+    return e.get_exit_code() != 0 ? e.get_exit_code() : 1;
   }
   try {
     if (*methods) {
       for (const MethodInfo& m : allMethods()) std::printf("%-10s %s\n", m.name, m.description);
+      return 0;
+    }
+    if (*compare) {
+      ImageRGB ref = readExr(refPath), test = readExr(testPath);
+      if (ref.width != test.width || ref.height != test.height)
+        throw Error(fmt::format("{}: size {}x{} differs from the reference's {}x{}", testPath, test.width,
+                                test.height, ref.width, ref.height));
+      ImageError e = compareImages(ref, test);
+      nlohmann::json j = {{"rmse", e.rmse}, {"relmse", e.relMse}, {"mean_abs_rel_error", e.meanAbsRelError},
+                          {"pixels", e.pixels}};
+      std::printf("%s\n", j.dump().c_str());
       return 0;
     }
     return runRender(o);

@@ -222,8 +222,9 @@ void loadEnvironment(Scene& scene) {
   namespace fs = std::filesystem;
   fs::path file = scene.environmentDesc.file;
   if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
-  ImageRGB image = readExr(file.string());
-  scene.environmentStats = sanitizeEnvironmentImage(image, file.string());
+  scene.environmentDesc.file = file.lexically_normal().string();
+  ImageRGB image = readExr(scene.environmentDesc.file);
+  scene.environmentStats = sanitizeEnvironmentImage(image, scene.environmentDesc.file);
   int order = std::countr_zero(unsigned(scene.environmentDesc.nside));
   scene.environment =
       environmentFromEquirect(image, order, scene.environmentDesc.yaw, scene.environmentDesc.scale);
