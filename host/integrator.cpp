@@ -4,6 +4,7 @@
 #include <array>
 
 #include "env_sampler.h"
+#include "ht.h"
 #include "sampling.h"
 
 namespace ht {
@@ -15,6 +16,10 @@ constexpr std::array kMethods = {
     MethodInfo{Method::Env, "env", "environment importance from the average tree"},
     MethodInfo{Method::Brdf, "brdf", "BRDF importance (cosine + Phong lobe or GGX visible normals)"},
     MethodInfo{Method::Mis, "mis", "one env and one BRDF direction per sample, power heuristic"},
+    MethodInfo{Method::Ht, "ht", "hierarchical thresholding of env x BRDF"},
+    MethodInfo{Method::HtVis, "ht-vis", "hierarchical thresholding of env x BRDF x visibility"},
+    MethodInfo{Method::HtBiased, "ht-biased", "ht with aggressive pruning and averaged BRDF values"},
+    MethodInfo{Method::HtVisBiased, "ht-vis-biased", "ht-vis with aggressive pruning and averaged BRDF values"},
 };
 
 struct Shading {
@@ -66,6 +71,14 @@ glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const g
 
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
                          EstimateCounters& counters) {
+  if (method == Method::Ht || method == Method::HtVis || method == Method::HtBiased ||
+      method == Method::HtVisBiased) {
+    HtOptions options;
+    options.visibility = method == Method::HtVis || method == Method::HtVisBiased;
+    options.biased = method == Method::HtBiased || method == Method::HtVisBiased;
+    uint32_t pixelSeed = rng.nextUint();
+    return estimateHt(scene, sp, options, spp, pixelSeed, rng, counters);
+  }
   Shading sh{scene, sp, Frame(sp.normal), {}, offsetRayOrigin(sp.position, sp.normal), counters};
   sh.woLocal = sh.frame.toLocal(sp.wo);
   const Material& mat = *sp.material;
@@ -123,6 +136,8 @@ glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method meth
         counters.directions += 2;
         break;
       }
+      default:
+        break;
     }
     sum += glm::dvec3(est);
   }

@@ -16,7 +16,7 @@
 
 namespace ht {
 
-enum class Method { Uniform, Cosine, Env, Brdf, Mis };
+enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased };
 
 struct MethodInfo {
   Method method;
@@ -37,13 +37,15 @@ struct ShadingPoint {
 struct EstimateCounters {
   uint64_t directions = 0;  // directions drawn
   uint64_t shadowRays = 0;
+  uint64_t htNodes = 0;     // HT tree nodes visited
 };
 
 // f(wo, wi) cos+(n, wi) V(x, wi): the integrand without the radiance.
 glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi);
 
 // Mean of `spp` independent one-sample estimates (mis: one environment and
-// one BRDF direction per sample, power heuristic).
+// one BRDF direction per sample, power heuristic); for the HT methods, one
+// traversal with `spp` expected samples.
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
                          EstimateCounters& counters);
 

@@ -116,6 +116,7 @@ int runRender(const RenderOptions& o) {
       {"shaded_pixels", r.shadedPixels},
       {"mean_samples_per_pixel", double(r.counters.directions) / shaded},
       {"mean_shadow_rays_per_pixel", double(r.counters.shadowRays) / shaded},
+      {"mean_ht_nodes_per_pixel", double(r.counters.htNodes) / shaded},
       {"seconds", {{"parse", tParse}, {"environment", tEnv}, {"render", r.seconds}, {"write", tWrite}}},
       {"outputs", {o.out, png.string()}},
   };

@@ -60,6 +60,7 @@ RenderResult renderCpu(const Scene& scene, const RenderSettings& s) {
   locals.combine_each([&](const Local& l) {
     result.counters.directions += l.counters.directions;
     result.counters.shadowRays += l.counters.shadowRays;
+    result.counters.htNodes += l.counters.htNodes;
     result.shadedPixels += l.shaded;
   });
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

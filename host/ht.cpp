@@ -1,0 +1,373 @@
+#include "ht.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <mutex>
+
+#include <glm/geometric.hpp>
+#include <tbb/parallel_for.h>
+
+#include "bsdf.h"
+#include "healpix.h"
+#include "tree.h"
+
+namespace ht {
+namespace {
+
+// The 24 permutations of {0, 1, 2, 3}.
+constexpr std::array<std::array<uint8_t, 4>, 24> kPermutations = [] {
+  std::array<std::array<uint8_t, 4>, 24> p{};
+  int n = 0;
+  for (uint8_t a = 0; a < 4; ++a)
+    for (uint8_t b = 0; b < 4; ++b)
+      for (uint8_t c = 0; c < 4; ++c)
+        for (uint8_t d = 0; d < 4; ++d)
+          if (a != b && a != c && a != d && b != c && b != d && c != d) p[n++] = {a, b, c, d};
+  return p;
+}();
+
+float angleBetween(const glm::vec3& a, const glm::vec3& b) { return std::acos(std::clamp(glm::dot(a, b), -1.0f, 1.0f)); }
+
+// Largest angle from a pixel's centre to its corners, with the margin that
+// covers edges bulging past the corner-to-corner span and rounding.
+double cornerRadius(int level, uint64_t pix) {
+  glm::dvec3 c = healpix::pixToVec(level, pix);
+  double r = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    glm::dvec3 q = healpix::pixToVec(level, pix, double(k & 1), double(k >> 1));
+    r = std::max(r, std::atan2(glm::length(glm::cross(c, q)), glm::dot(c, q)));
+  }
+  return r * (1.0 + 1e-3) + 1e-6;
+}
+
+constexpr int kExactRadiusLevels = 8;  // beyond: scaled from this level with a margin
+
+std::unique_ptr<HtGeometry> buildGeometry(int order) {
+  auto g = std::make_unique<HtGeometry>();
+  g->order = order;
+  g->centers.resize(MaxAvgTree::levelOffset(order + 1));
+  for (int l = 0; l <= order; ++l) {
+    glm::vec3* out = g->centers.data() + MaxAvgTree::levelOffset(l);
+    tbb::parallel_for(uint64_t(0), MaxAvgTree::levelSize(l),
+                      [&](uint64_t p) { out[p] = glm::vec3(healpix::pixToVec(l, p)); });
+  }
+  for (int l = 0; l <= std::min(kExactRadiusLevels, healpix::kMaxOrder); ++l) {
+    std::vector<double> perFace(12, 0.0);
+    tbb::parallel_for(0, 12, [&](int f) {
+      uint64_t n = uint64_t(1) << (2 * l);
+      for (uint64_t p = f * n; p < (f + 1) * n; ++p) perFace[f] = std::max(perFace[f], cornerRadius(l, p));
+    });
+    g->levelRadius[l] = float(*std::max_element(perFace.begin(), perFace.end()));
+  }
+  // Pixels halve at each finer level and grow more regular: scale the last
+  // exact radius, with 5% to spare (checked against every level in tests).
+  for (int l = kExactRadiusLevels + 1; l < int(g->levelRadius.size()); ++l)
+    g->levelRadius[l] = float(g->levelRadius[kExactRadiusLevels] * std::ldexp(1.05, kExactRadiusLevels - l));
+  return g;
+}
+
+glm::vec3 toFloat(const glm::dvec3& v) { return glm::vec3(v); }
+
+}  // namespace
+
+const HtGeometry& htGeometry(int order) {
+  static std::mutex mutex;
+  static std::map<int, std::unique_ptr<HtGeometry>> cache;
+  std::lock_guard lock(mutex);
+  auto& g = cache[order];
+  if (!g) g = buildGeometry(order);
+  return *g;
+}
+
+HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
+    : scene(sc),
+      env(sc.environment),
+      options(opt),
+      geometry(htGeometry(sc.environment.order)),
+      material(*sp.material),
+      frame(glm::normalize(toFloat(sc.environment.toHealpixFrame(sp.normal)))) {
+  n = frame.n;
+  wo = glm::normalize(toFloat(env.toHealpixFrame(sp.wo)));
+  woLocal = frame.toLocal(wo);
+  mirror = reflectAbout(wo, n);
+  if (material.type == MaterialType::Ggx) brdfG1 = ggxG1(woLocal, material.alpha);
+  if (options.visibility) {
+    // Caps shrink by a milliradian so that "inside" always means blocked.
+    constexpr float kMargin = 1e-3f;
+    for (const Sphere& s : scene.spheres) {
+      glm::vec3 d = s.center - sp.position;
+      float dist = glm::length(d);
+      if (dist <= 0.0f) continue;
+      float angle = std::asin(std::min(1.0f, s.radius / dist)) - kMargin;
+      if (angle > 0.0f) caps.push_back({glm::normalize(toFloat(env.toHealpixFrame(d / dist))), angle});
+    }
+    for (const Plane& p : scene.planes) {
+      float side = glm::dot(sp.position - p.point, p.normal);
+      glm::vec3 below = side >= 0.0f ? -p.normal : p.normal;
+      caps.push_back({glm::normalize(toFloat(env.toHealpixFrame(below))), 0.5f * kPi - kMargin});
+    }
+  }
+  estimateBudget();
+}
+
+float HtPoint::brdfValue(const glm::vec3& dirHp) const {
+  return luminance(evalBsdf(material, woLocal, frame.toLocal(dirHp)));
+}
+
+// Bound of luminance(f cos) over a cone: each lobe bounded by its value at
+// the smallest angle the cone allows (DESIGN.md section 6).
+float HtPoint::brdfBound(const glm::vec3& axis, float radius) const {
+  float toNormal = std::max(0.0f, angleBetween(axis, n) - radius);
+  if (toNormal >= 0.5f * kPi || woLocal.z <= 0.0f) return 0.0f;
+  float cosMax = std::cos(toNormal);
+  float b = luminance(material.diffuse) * kInvPi * cosMax;
+  if (material.type == MaterialType::Phong) {
+    float toMirror = std::max(0.0f, angleBetween(axis, mirror) - radius);
+    if (toMirror < 0.5f * kPi)
+      b += luminance(material.specular) * (material.exponent + 2.0f) * 0.5f * kInvPi *
+           std::pow(std::cos(toMirror), material.exponent) * cosMax;
+  } else if (material.type == MaterialType::Ggx) {
+    // Rotating wo about h and about n differ by a rotation of twice their
+    // angle, so angle(h, n) >= angle(w, mirror) / 2.
+    float thetaH = 0.5f * std::max(0.0f, angleBetween(axis, mirror) - radius);
+    float d = ggxD(glm::vec3(std::sin(thetaH), 0.0f, std::cos(thetaH)), material.alpha);
+    // Schlick grows with the half angle between wo and w.
+    float halfMax = std::min(0.5f * kPi, 0.5f * (angleBetween(axis, wo) + radius));
+    float m = 1.0f - std::cos(halfMax);
+    float f0 = luminance(material.specular);
+    float fresnel = f0 + (1.0f - f0) * m * m * m * m * m;
+    b += fresnel * d * brdfG1 / (4.0f * woLocal.z);
+  }
+  return b;
+}
+
+int HtPoint::visibilityClass(const glm::vec3& axis, float radius) const {
+  bool partial = false;
+  for (const Cap& c : caps) {
+    float delta = angleBetween(axis, c.axis);
+    if (delta + radius <= c.angle) return 0;
+    if (delta - radius < c.angle) partial = true;
+  }
+  return partial ? 2 : 1;
+}
+
+float HtPoint::visibleFraction(uint64_t leaf) const {
+  static constexpr float kOffsets[5][2] = {{0.5f, 0.5f}, {0.25f, 0.25f}, {0.75f, 0.25f}, {0.25f, 0.75f}, {0.75f, 0.75f}};
+  int free = 0;
+  for (const auto& o : kOffsets) {
+    glm::vec3 d = toFloat(healpix::pixToVec(env.order, leaf, o[0], o[1]));
+    bool blocked = false;
+    for (const Cap& c : caps) blocked |= glm::dot(d, c.axis) > std::cos(c.angle);
+    free += !blocked;
+  }
+  return std::max(options.visibilityFloor, float(free) / 5.0f);
+}
+
+float HtPoint::bound(int level, uint64_t node) const {
+  const uint64_t i = MaxAvgTree::levelOffset(level) + node;
+  float e = env.tree.maxv[i];
+  if (e <= 0.0f) return 0.0f;
+  const glm::vec3& c = geometry.centers[i];
+  float radius = geometry.levelRadius[level];
+  float b = e * brdfBound(c, radius);
+  if (b > 0.0f && options.visibility && visibilityClass(c, radius) == 0) return 0.0f;
+  // Averages are trusted only over the last levels: higher up, a node's
+  // average says little about the leaves a bright pixel makes.
+  if (options.biased && b > 0.0f && level >= env.order - 1)
+    b = std::min(b, options.biasedPruning * nodeEstimate(level, node));
+  return b;
+}
+
+// Product of the factors' averages per unit solid angle, each never below a
+// floor of its own bound, so that it is positive wherever the bound is.
+float HtPoint::nodeEstimate(int level, uint64_t node) const {
+  const uint64_t i = MaxAvgTree::levelOffset(level) + node;
+  const glm::vec3& c = geometry.centers[i];
+  float radius = geometry.levelRadius[level];
+  float brdf = std::max(brdfValue(c), options.brdfFloor * brdfBound(c, radius));
+  float vis = 1.0f;
+  if (options.visibility) {
+    int cls = visibilityClass(c, radius);
+    vis = cls == 0 ? 0.0f : cls == 1 ? 1.0f : 0.5f;
+  }
+  return env.tree.avgv[i] * brdf * vis;
+}
+
+float HtPoint::leafValue(uint64_t leaf, float pathMin) const {
+  const int D = env.order;
+  const uint64_t i = MaxAvgTree::levelOffset(D) + leaf;
+  float e = env.tree.avgv[i];
+  if (e <= 0.0f || pathMin <= 0.0f) return 0.0f;
+  const glm::vec3& c = geometry.centers[i];
+  float radius = geometry.levelRadius[D];
+  float brdfB = brdfBound(c, radius);
+  if (brdfB <= 0.0f) return 0.0f;
+  float h = e * std::max(brdfValue(c), options.brdfFloor * brdfB);
+  if (options.visibility) {
+    int cls = visibilityClass(c, radius);
+    if (cls == 0) return 0.0f;
+    if (cls == 2) h *= visibleFraction(leaf);
+  }
+  // Never above a bound used to prune an ancestor: pruning then loses nothing.
+  return std::min(h, pathMin);
+}
+
+float HtPoint::pathBound(uint64_t leaf) const {
+  float m = INFINITY;
+  for (int l = env.order; l >= 0; --l) m = std::min(m, bound(l, leaf >> (2 * (env.order - l))));
+  return m;
+}
+
+int HtPoint::digit(uint32_t pixelSeed, int level, uint64_t node, int child) {
+  uint32_t h = pcgHash(pixelSeed ^ pcgHash(uint32_t(level) ^ pcgHash(uint32_t(node) ^ pcgHash(uint32_t(node >> 32)))));
+  return kPermutations[h % 24][child];
+}
+
+uint64_t HtPoint::lowestCandidate(uint32_t pixelSeed, int level, uint64_t node) {
+  // Digits of the path from the face root (level 0) down to `node`.
+  uint64_t r = 0;
+  for (int l = 0; l < level; ++l) {
+    uint64_t ancestor = node >> (2 * (level - l));
+    int child = int((node >> (2 * (level - l - 1))) & 3);
+    r += uint64_t(digit(pixelSeed, l, ancestor, child)) << (2 * l);
+  }
+  return r;
+}
+
+void HtPoint::estimateBudget() {
+  // Refine the nodes with the largest bound mass, then sum the estimates of
+  // the frontier: C_est ~ integral of h. A wrong C_est changes the expected
+  // sample count, never the expectation of the estimate.
+  struct Node {
+    int level;
+    uint64_t node;
+    double mass;
+  };
+  std::vector<Node> frontier;
+  auto push = [&](int l, uint64_t p) {
+    double mass = double(bound(l, p)) * healpix::pixelSolidAngle(l);
+    if (mass > 0.0) frontier.push_back({l, p, mass});
+  };
+  for (int f = 0; f < 12; ++f) push(0, uint64_t(f));
+  for (int k = 0; k < options.budgetRefinements && !frontier.empty(); ++k) {
+    auto it = std::max_element(frontier.begin(), frontier.end(), [](const Node& a, const Node& b) {
+      return a.mass < b.mass;
+    });
+    if (it->level >= env.order) break;
+    Node top = *it;
+    frontier.erase(it);
+    for (int j = 0; j < 4; ++j) push(top.level + 1, 4 * top.node + j);
+  }
+  double c = 0.0;
+  for (const Node& nd : frontier) c += double(nodeEstimate(nd.level, nd.node)) * healpix::pixelSolidAngle(nd.level);
+  cEst_ = c;
+}
+
+void HtPoint::setBudget(double expected) { s_ = cEst_ > 0.0 ? expected / cEst_ : 0.0; }
+
+struct HtPoint::Walk {
+  uint32_t seed;
+  double u;
+  int face;
+  Rng& jitter;
+  std::vector<HtSample>& out;
+  HtCounters& counters;
+};
+
+void HtPoint::traverse(uint32_t pixelSeed, float u, Rng& jitter, std::vector<HtSample>& out,
+                       HtCounters& counters) const {
+  if (s_ <= 0.0) return;
+  for (int f = 0; f < 12; ++f) {
+    Walk w{pixelSeed, double(u), f, jitter, out, counters};
+    visit(w, 0, uint64_t(f), 0, INFINITY);
+  }
+}
+
+void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const {
+  ++w.counters.nodes;
+  float b = bound(level, node);
+  pathMin = std::min(pathMin, b);
+  if (double(r) + w.u >= threshold(b)) return;
+  if (level == env.order) {
+    float h = leafValue(node, pathMin);
+    if (h > 0.0f) visitVirtual(w, level, node, r, h, node, 0, 0);
+    return;
+  }
+  for (int j = 0; j < 4; ++j)
+    visit(w, level + 1, 4 * node + j, r + (uint64_t(digit(w.seed, level, node, j)) << (2 * level)), pathMin);
+}
+
+// Cells at and below the data leaf, where h is constant. (sx, sy) locate the
+// cell inside the leaf pixel on a 2^(level - order) grid.
+void HtPoint::visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float h, uint64_t leaf, uint64_t sx,
+                           uint64_t sy) const {
+  const double t = threshold(h);
+  if (double(r) + w.u >= t) return;
+  const double stride = std::ldexp(1.0, 2 * level);
+  if (double(r) + stride + w.u < t && level < options.maxLevel) {
+    for (int j = 0; j < 4; ++j)
+      visitVirtual(w, level + 1, 4 * vnode + j, r + (uint64_t(digit(w.seed, level, vnode, j)) << (2 * level)), h,
+                   leaf, 2 * sx + (j & 1), 2 * sy + (j >> 1));
+    return;
+  }
+  // One candidate (or, at the deepest level, all that remain), each uniform in the cell.
+  const double cells = std::ldexp(1.0, level - env.order);
+  for (double i = double(r); i + w.u < t; i += stride) {
+    double dx = (double(sx) + w.jitter.next()) / cells;
+    double dy = (double(sy) + w.jitter.next()) / cells;
+    HtSample s;
+    s.dir = env.fromHealpixFrame(healpix::pixToVec(env.order, leaf, dx, dy));
+    s.pixel = leaf;
+    s.candidate = uint64_t(i);
+    s.face = w.face;
+    s.level = level;
+    s.h = h;
+    s.weight = float(1.0 / (s_ * double(h)));
+    w.out.push_back(s);
+    ++w.counters.samples;
+  }
+}
+
+glm::vec3 estimateHt(const Scene& scene, const ShadingPoint& sp, const HtOptions& options, int n, uint32_t pixelSeed,
+                     Rng& rng, EstimateCounters& counters) {
+  if (!scene.environment.hasLight()) return glm::vec3(0.0f);
+  HtPoint ht(scene, sp, options);
+  ht.setBudget(double(n));
+  thread_local std::vector<HtSample> samples;
+  samples.clear();
+  HtCounters hc;
+  float u = rng.next();
+  ht.traverse(pixelSeed, u, rng, samples, hc);
+
+  const Frame shading(sp.normal);
+  const glm::vec3 woLocal = shading.toLocal(sp.wo);
+  const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
+  glm::dvec3 sum(0.0);
+  for (const HtSample& s : samples) {
+    glm::vec3 radiance = scene.environment.radiance[s.pixel];
+    glm::vec3 fcos;
+    if (options.biased) {
+      // The leaf's average BRDF value instead of the exact one, blended back
+      // to the exact value where the BRDF varies strongly inside the leaf.
+      const uint64_t i = MaxAvgTree::levelOffset(scene.environment.order) + s.pixel;
+      glm::vec3 c = ht.geometry.centers[i];
+      float centre = ht.brdfValue(c);
+      float spread = ht.brdfBound(c, ht.geometry.levelRadius[scene.environment.order]);
+      float exact = centre > 0.0f ? std::clamp(spread / centre - 1.0f, 0.0f, 1.0f) : 1.0f;
+      fcos = (1.0f - exact) * evalBsdf(*sp.material, ht.woLocal, ht.frame.toLocal(c));
+      if (exact > 0.0f) fcos += exact * evalBsdf(*sp.material, woLocal, shading.toLocal(s.dir));
+    } else {
+      fcos = evalBsdf(*sp.material, woLocal, shading.toLocal(s.dir));
+    }
+    if (fcos == glm::vec3(0.0f) || radiance == glm::vec3(0.0f)) continue;
+    ++counters.shadowRays;
+    if (occluded(scene, origin, s.dir)) continue;
+    sum += glm::dvec3(fcos * radiance) * double(s.weight);
+  }
+  counters.directions += hc.samples;
+  counters.htNodes += hc.nodes;
+  return glm::vec3(sum);
+}
+
+}  // namespace ht

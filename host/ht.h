@@ -1,0 +1,133 @@
+// Hierarchical thresholding (HT): product importance sampling of
+// environment x BRDF (x visibility) on the HEALPix hierarchy.
+//
+// Candidates are base-4 Van der Corput indices on each face's quadtree. A
+// node at level l owns the indices r + k 4^l (k = 0, 1, ...), where its lowest
+// index r collects the (scrambled) digits of its path: child j of a node gets
+// r + perm(j) 4^l, perm one of the 24 permutations of 4 digits, drawn by a
+// stateless hash of (pixel seed, level, node). A leaf of value h accepts its
+// candidates i with i + u < T(h) = s h A (A = solid angle of a base face,
+// u one random offset per pixel), so it receives T / 4^l = s h (leaf solid
+// angle) samples on average. A node is pruned when r + u >= T(bound): no
+// leaf below it can accept anything. Leaves that call for more than one
+// candidate are subdivided virtually (h stays constant) and each accepted
+// sample is jittered uniformly inside its cell. The estimate is
+// sum f(w) / (s h(w)), with f the exact integrand.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "integrator.h"
+#include "rng.h"
+#include "sampling.h"
+#include "scene.h"
+
+namespace ht {
+
+struct HtOptions {
+  bool visibility = false;     // multiply by the inner-sphere visibility factor
+  bool biased = false;         // aggressive pruning + averaged contributions
+  int budgetRefinements = 24;  // node splits used to estimate C = integral of h
+  float brdfFloor = 1e-3f;     // leaf BRDF factor >= brdfFloor * its bound
+  float visibilityFloor = 0.1f;  // leaf visibility factor of a partly covered leaf >= this
+  int maxLevel = 24;           // deepest (virtual) level; r stays below 2^48
+  float biasedPruning = 4.0f;  // biased: prune with min(bound, this * estimate)
+};
+
+// Per-level HEALPix geometry shared by every shading point: node centres
+// (HEALPix frame, same layout as the max/avg trees) and, per level, an
+// angular radius that bounds every node of that level.
+struct HtGeometry {
+  int order = 0;
+  std::vector<glm::vec3> centers;
+  std::array<float, 32> levelRadius{};
+};
+const HtGeometry& htGeometry(int order);
+
+// A spherical cap of blocked directions (sphere occluder or the far side of
+// a plane), in the HEALPix frame.
+struct Cap {
+  glm::vec3 axis;
+  float angle;  // half-angle, radians
+};
+
+struct HtSample {
+  glm::vec3 dir;       // world space
+  uint64_t pixel;      // environment pixel (leaf) holding the sample
+  uint64_t candidate;  // the accepted VDC index within its face
+  int face;
+  int level;           // level of the cell it was jittered in
+  float h;             // acceptance value of the leaf
+  float weight;        // 1 / (s h)
+};
+
+struct HtCounters {
+  uint64_t nodes = 0;    // nodes visited (bounds evaluated)
+  uint64_t samples = 0;  // accepted candidates
+};
+
+// Everything HT needs at one shading point.
+class HtPoint {
+ public:
+  HtPoint(const Scene& scene, const ShadingPoint& sp, const HtOptions& options);
+
+  // Sets the expected sample count n: s = n / C_est.
+  void setBudget(double n);
+  double budgetEstimate() const { return cEst_; }
+  double scale() const { return s_; }
+  double threshold(float h) const { return s_ * double(h) * kFaceSolidAngle; }
+
+  // Upper bound of the product over a node (level <= environment order).
+  float bound(int level, uint64_t node) const;
+  // Acceptance value of a leaf given the smallest bound on its path.
+  float leafValue(uint64_t leaf, float pathBound) const;
+  // Smallest bound over the path from the face root to `leaf` (inclusive).
+  float pathBound(uint64_t leaf) const;
+
+  // Runs the traversal, appending the accepted samples to `out`.
+  void traverse(uint32_t pixelSeed, float u, Rng& jitter, std::vector<HtSample>& out, HtCounters& counters) const;
+
+  // Lowest candidate index of a node, from the digit permutations on its path.
+  static uint64_t lowestCandidate(uint32_t pixelSeed, int level, uint64_t node);
+  static int digit(uint32_t pixelSeed, int level, uint64_t node, int child);
+
+  static constexpr double kFaceSolidAngle = 4.0 * 3.14159265358979323846 / 12.0;
+
+  const Scene& scene;
+  const Environment& env;
+  const HtOptions& options;
+  const HtGeometry& geometry;
+  const Material& material;
+  Frame frame;        // shading frame in the HEALPix frame
+  glm::vec3 woLocal;  // in the shading frame
+  glm::vec3 n, wo, mirror;  // HEALPix frame
+  float brdfG1 = 1.0f;
+  std::vector<Cap> caps;
+
+  float brdfBound(const glm::vec3& axis, float radius) const;
+  float brdfValue(const glm::vec3& dirHp) const;
+  // 0: the cone is fully blocked, 1: fully free, 2: partly covered.
+  int visibilityClass(const glm::vec3& axis, float radius) const;
+  float visibleFraction(uint64_t leaf) const;
+  float nodeEstimate(int level, uint64_t node) const;
+
+ private:
+  struct Walk;
+  void visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const;
+  void visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float h, uint64_t leaf, uint64_t sx, uint64_t sy) const;
+  void estimateBudget();
+
+  double cEst_ = 1.0;
+  double s_ = 0.0;
+};
+
+// HT estimate at a shading point with n expected samples (the `ht*` methods).
+glm::vec3 estimateHt(const Scene& scene, const ShadingPoint& sp, const HtOptions& options, int n,
+                     uint32_t pixelSeed, Rng& rng, EstimateCounters& counters);
+
+}  // namespace ht
