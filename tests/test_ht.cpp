@@ -1,0 +1,283 @@
+// Hierarchical thresholding: the traversal against a full scan, its density,
+// its sample count, its bounds, and the unbiasedness of its estimates.
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+#include <set>
+
+#include <glm/geometric.hpp>
+
+#include "chi2.h"
+#include "estimator_harness.h"
+#include "ht.h"
+#include "image_io.h"
+
+using namespace ht;
+using namespace ht::test;
+
+namespace {
+
+const glm::vec3 kSunDir = glm::normalize(glm::vec3(0.5f, 0.6f, 0.3f));
+
+// Sky with a sun pixel and a black lower half, at a small resolution.
+Environment smallSky(int order) {
+  std::vector<glm::vec3> px(healpix::pixelCount(order));
+  Environment probe = constantEnvironment(order, glm::vec3(1.0f));
+  for (uint64_t p = 0; p < px.size(); ++p) {
+    glm::vec3 d = probe.direction(order, p, 0.5f, 0.5f);
+    px[p] = d.y > 0.0f ? glm::vec3(0.3f, 0.5f, 0.9f) * (0.5f + d.y) : glm::vec3(0.0f);
+  }
+  px[probe.pixelOf(kSunDir)] = glm::vec3(3000.0f, 2500.0f, 2000.0f);
+  return environmentFromPixels(order, std::move(px), 20.0f);
+}
+
+Environment sunrise(int order) {
+  ImageRGB img = readExr(std::string(HT_TEST_DATA) + "/env/sunrise.exr");
+  sanitizeEnvironmentImage(img, "sunrise.exr");
+  return environmentFromEquirect(img, order, 0.0f, 1.0f);
+}
+
+glm::vec3 mirrorOf(glm::vec3 d) { return {-d.x, d.y, -d.z}; }
+
+std::vector<ShadingSetup> smallSetups(int order) {
+  std::vector<ShadingSetup> s;
+  s.push_back(makeSetup("glossy-sun", smallSky(order), ggx(0.2f, glm::vec3(0.9f)), mirrorOf(kSunDir)));
+  s.push_back(makeSetup("diffuse-shadowed", smallSky(order), lambert(0.7f), {0.2f, 1.0f, 0.1f},
+                        {{1.5f * kSunDir, 0.3f, 0}, {glm::vec3(-1.0f, 0.5f, 0.0f), 0.6f, 0}}));
+  s.push_back(makeSetup("phong-grazing", smallSky(order), phong(60.0f, glm::vec3(0.5f), glm::vec3(0.2f)),
+                        {std::sin(1.45f), std::cos(1.45f), 0.2f}));
+  return s;
+}
+
+HtOptions optionsFor(bool visibility) {
+  HtOptions o;
+  o.visibility = visibility;
+  return o;
+}
+
+// Accepted candidates per leaf by scanning every leaf: r from the digit
+// permutations on its path, h from the leaf's value, all i = r + k 4^D with
+// i + u < T(h).
+std::map<uint64_t, std::multiset<uint64_t>> fullScan(const HtPoint& ht, uint32_t seed, float u) {
+  std::map<uint64_t, std::multiset<uint64_t>> accepted;
+  const int D = ht.env.order;
+  for (uint64_t leaf = 0; leaf < healpix::pixelCount(D); ++leaf) {
+    float h = ht.leafValue(leaf, ht.pathBound(leaf));
+    if (h <= 0.0f) continue;
+    double t = ht.threshold(h);
+    uint64_t r = HtPoint::lowestCandidate(seed, D, leaf);
+    for (uint64_t i = r; double(i) + u < t; i += uint64_t(1) << (2 * D)) accepted[leaf].insert(i);
+  }
+  return accepted;
+}
+
+}  // namespace
+
+// Pruning never loses a candidate: the traversal accepts exactly what a scan
+// of all leaves accepts, for the same seed and offset.
+TEST(Ht, TraversalAcceptsExactlyTheFullScan) {
+  for (int order : {2, 4}) {
+    for (const ShadingSetup& s : smallSetups(order)) {
+      for (bool vis : {false, true}) {
+        HtOptions opt = optionsFor(vis);
+        ShadingPoint sp = s.sp;
+        sp.material = &s.scene.materials[0];
+        HtPoint ht(s.scene, sp, opt);
+        for (double n : {4.0, 64.0, 1024.0}) {
+          ht.setBudget(n);
+          for (uint32_t seed = 1; seed <= 3; ++seed) {
+            Rng rng(seed, 77);
+            float u = rng.next();
+            std::vector<HtSample> samples;
+            HtCounters counters;
+            ht.traverse(seed, u, rng, samples, counters);
+            std::map<uint64_t, std::multiset<uint64_t>> got;
+            for (const HtSample& x : samples) got[x.pixel].insert(x.candidate);
+            auto want = fullScan(ht, seed, u);
+            ASSERT_EQ(got, want) << s.name << " order " << order << " vis " << vis << " n " << n << " seed " << seed;
+            EXPECT_LT(counters.nodes, MaxAvgTree::levelOffset(order + 1)) << "nothing was pruned";
+          }
+        }
+      }
+    }
+  }
+}
+
+// The samples' density is s h: chi-square over bins one level finer than the
+// leaves (so the jitter inside a leaf is tested too), Sidak over the cases.
+TEST(Ht, DensityIsProportionalToH) {
+  const int order = 3;
+  std::vector<ShadingSetup> setups = smallSetups(order);
+  const double alpha = sidakAlpha(0.01, int(setups.size()) * 2);
+  for (const ShadingSetup& s : setups) {
+    for (bool vis : {false, true}) {
+      HtOptions opt = optionsFor(vis);
+      ShadingPoint sp = s.sp;
+      sp.material = &s.scene.materials[0];
+      HtPoint ht(s.scene, sp, opt);
+      ht.setBudget(32.0);
+      const int binOrder = order + 1;
+      std::vector<double> expected(healpix::pixelCount(binOrder), 0.0);
+      std::vector<uint64_t> observed(expected.size(), 0);
+      const int runs = 20000;
+      for (uint64_t leaf = 0; leaf < healpix::pixelCount(order); ++leaf) {
+        double perLeaf = runs * ht.scale() * ht.leafValue(leaf, ht.pathBound(leaf)) * healpix::pixelSolidAngle(order);
+        for (uint64_t c = 4 * leaf; c < 4 * leaf + 4; ++c) expected[c] = perLeaf / 4.0;
+      }
+      std::vector<HtSample> samples;
+      for (int run = 0; run < runs; ++run) {
+        Rng rng(1000 + run, 5);
+        samples.clear();
+        HtCounters counters;
+        ht.traverse(rng.nextUint(), rng.next(), rng, samples, counters);
+        for (const HtSample& x : samples) ++observed[binIndex(binOrder, s.scene.environment.toHealpixFrame(x.dir))];
+      }
+      Chi2Result r = chi2Test(observed, expected);
+      EXPECT_GT(r.pValue, alpha) << s.name << " vis " << vis << ": " << describe(r, observed, expected);
+    }
+  }
+}
+
+// E[count] = n C / C_est, with C the exact integral of h (z-test).
+TEST(Ht, ExpectedSampleCount) {
+  const int order = 3;
+  int tests = 0;
+  std::vector<std::pair<std::string, double>> zs;
+  for (const ShadingSetup& s : smallSetups(order)) {
+    for (bool vis : {false, true}) {
+      HtOptions opt = optionsFor(vis);
+      ShadingPoint sp = s.sp;
+      sp.material = &s.scene.materials[0];
+      HtPoint ht(s.scene, sp, opt);
+      double c = 0.0;
+      for (uint64_t leaf = 0; leaf < healpix::pixelCount(order); ++leaf)
+        c += double(ht.leafValue(leaf, ht.pathBound(leaf))) * healpix::pixelSolidAngle(order);
+      for (double n : {4.0, 64.0}) {
+        ht.setBudget(n);
+        const int runs = 5000;
+        double sum = 0.0, sumSq = 0.0;
+        std::vector<HtSample> samples;
+        for (int run = 0; run < runs; ++run) {
+          Rng rng(run, 9);
+          samples.clear();
+          HtCounters counters;
+          ht.traverse(rng.nextUint(), rng.next(), rng, samples, counters);
+          sum += double(samples.size());
+          sumSq += double(samples.size()) * double(samples.size());
+        }
+        double mean = sum / runs, var = (sumSq / runs - mean * mean) * runs / (runs - 1.0);
+        double expected = n * c / ht.budgetEstimate();
+        zs.push_back({s.name + (vis ? " vis" : "") + " n=" + std::to_string(int(n)),
+                      (mean - expected) / std::sqrt(var / runs + 1e-300)});
+        ++tests;
+        // The budget estimate itself keeps the count near n.
+        EXPECT_GT(mean, 0.25 * n) << s.name;
+        EXPECT_LT(mean, 4.0 * n) << s.name;
+      }
+    }
+  }
+  const double zCrit = normalQuantileTwoSided(sidakAlpha(0.01, tests));
+  for (const auto& [name, z] : zs) EXPECT_LT(std::abs(z), zCrit) << name;
+}
+
+// For random nodes and directions inside them, the product never exceeds
+// the bound used to prune, and a node classified as blocked is blocked.
+TEST(Ht, BoundsAreConservative) {
+  const int order = 5;
+  std::vector<ShadingSetup> setups = smallSetups(order);
+  setups.push_back(makeSetup("mirror-like", smallSky(order), ggx(0.02f, glm::vec3(0.95f)), mirrorOf(kSunDir)));
+  setups.push_back(makeSetup("phong-1000", smallSky(order), phong(1000.0f, glm::vec3(0.9f)), {0.3f, 0.8f, 0.1f}));
+  std::mt19937_64 gen(42);
+  std::uniform_real_distribution<double> uni(0.0, 1.0);
+  for (const ShadingSetup& s : setups) {
+    ShadingPoint sp = s.sp;
+    sp.material = &s.scene.materials[0];
+    HtOptions opt = optionsFor(true);
+    HtPoint ht(s.scene, sp, opt);
+    const Environment& env = s.scene.environment;
+    int blockedChecked = 0;
+    for (int trial = 0; trial < 3000; ++trial) {
+      int level = int(gen() % (order + 1));
+      uint64_t node = gen() % healpix::pixelCount(level);
+      // Bias half the trials towards the lobe, where bounds are tight.
+      if (trial % 2 == 0) node = healpix::vecToPix(level, glm::dvec3(ht.mirror));
+      float b = ht.bound(level, node);
+      const glm::vec3& c = ht.geometry.centers[MaxAvgTree::levelOffset(level) + node];
+      float brdfB = ht.brdfBound(c, ht.geometry.levelRadius[level]);
+      int cls = ht.visibilityClass(c, ht.geometry.levelRadius[level]);
+      for (int k = 0; k < 50; ++k) {
+        double dx = k < 4 ? double(k & 1) : uni(gen), dy = k < 4 ? double(k >> 1) : uni(gen);
+        glm::dvec3 hp = healpix::pixToVec(level, node, dx, dy);
+        glm::vec3 w = env.fromHealpixFrame(hp);
+        uint64_t leaf = healpix::vecToPix(order, hp);
+        float brdf = ht.brdfValue(glm::vec3(hp));
+        ASSERT_LE(brdf, brdfB * (1.0f + 1e-4f) + 1e-12f) << s.name << " level " << level << " node " << node;
+        if (k < 4) continue;  // corners may fall in a neighbouring leaf
+        bool visible = !occluded(s.scene, offsetRayOrigin(sp.position, sp.normal), w);
+        float product = luminance(env.radiance[leaf]) * brdf * (visible ? 1.0f : 0.0f);
+        ASSERT_LE(product, b * (1.0f + 1e-4f) + 1e-12f) << s.name << " level " << level << " node " << node;
+        if (cls == 0) {
+          ASSERT_FALSE(visible) << s.name << ": node classified blocked sees the sky";
+          ++blockedChecked;
+        }
+      }
+    }
+    if (s.name == "diffuse-shadowed") EXPECT_GT(blockedChecked, 0);
+  }
+}
+
+// Every node of a level lies within the level's radius of its centre.
+TEST(Ht, LevelRadiusBoundsEveryNode) {
+  const HtGeometry& g = htGeometry(6);
+  std::mt19937_64 gen(3);
+  for (int level = 0; level <= healpix::kMaxOrder; ++level) {
+    std::vector<uint64_t> pixels;
+    uint64_t n = healpix::pixelCount(level);
+    for (int f = 0; f < 12; ++f) {  // face corners and centres are the most distorted
+      uint64_t side = uint64_t(1) << level;
+      for (uint32_t ix : {uint32_t(0), uint32_t(side - 1), uint32_t(side / 2)})
+        for (uint32_t iy : {uint32_t(0), uint32_t(side - 1), uint32_t(side / 2)})
+          pixels.push_back(healpix::xyfToPix(level, ix, iy, f));
+    }
+    for (int k = 0; k < 2000; ++k) pixels.push_back(gen() % n);
+    for (uint64_t p : pixels)
+      ASSERT_LE(healpix::boundingCone(level, p).radius, double(g.levelRadius[level])) << "level " << level;
+  }
+}
+
+// ht and ht-vis are unbiased: z-tests against the brute-force integral at
+// the shading points of the baseline tests and a black hemisphere.
+TEST(Ht, UnbiasedAgainstBruteForce) {
+  const int order = 5;
+  std::vector<ShadingSetup> setups;
+  setups.push_back(makeSetup("glossy-small-sun", smallSky(order), ggx(0.1f, glm::vec3(0.9f)), mirrorOf(kSunDir)));
+  setups.push_back(makeSetup("sun-shadow", smallSky(order), lambert(0.8f), {0.0f, 1.0f, 0.3f},
+                             {{2.0f * kSunDir, 0.4f, 0}}));
+  setups.push_back(makeSetup("grazing-sunrise", sunrise(order), ggx(0.25f, glm::vec3(0.95f)),
+                             {std::sin(1.48f), std::cos(1.48f), 0.0f}));
+  setups.push_back(makeSetup("phong-sunrise-occluded", sunrise(order), phong(40.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
+                             {-0.4f, 0.6f, 0.3f}, {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}}));
+  std::vector<glm::vec3> half(healpix::pixelCount(order), glm::vec3(1.0f));
+  Environment probe = constantEnvironment(order, glm::vec3(1.0f));
+  for (uint64_t p = 0; p < half.size(); ++p)
+    if (probe.direction(order, p, 0.5f, 0.5f).x < 0.0f) half[p] = glm::vec3(0.0f);
+  setups.push_back(makeSetup("black-hemisphere", environmentFromPixels(order, half), ggx(0.3f, glm::vec3(0.5f), glm::vec3(0.4f)),
+                             {0.3f, 0.8f, 0.0f}));
+  const Method methods[] = {Method::Ht, Method::HtVis};
+  const int tests = int(setups.size()) * 2 * 3;
+  const double zCrit = normalQuantileTwoSided(sidakAlpha(0.01, tests));
+  for (const ShadingSetup& s : setups) {
+    glm::dvec3 ref = bruteForceIntegral(s, 16);
+    glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, 8));
+    for (Method m : methods) {
+      MeanAndError e = repeatedEstimates(s, m, 20000, 16, 4321);
+      for (int c = 0; c < 3; ++c) {
+        double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
+        EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
+            << s.name << " / " << methodName(m) << " channel " << c << ": mean " << e.mean[c] << " reference "
+            << ref[c] << " std error " << e.stdError[c];
+      }
+    }
+  }
+}
