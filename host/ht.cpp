@@ -27,7 +27,18 @@ constexpr std::array<std::array<uint8_t, 4>, 24> kPermutations = [] {
   return p;
 }();
 
-float angleBetween(const glm::vec3& a, const glm::vec3& b) { return std::acos(std::clamp(glm::dot(a, b), -1.0f, 1.0f)); }
+// cos(max(0, angle(a, b) - radius)): the largest cosine to b over a cone.
+float cosClosest(const glm::vec3& a, const glm::vec3& b, float cosR, float sinR) {
+  float c = std::clamp(glm::dot(a, b), -1.0f, 1.0f);
+  if (c >= cosR) return 1.0f;
+  return c * cosR + std::sqrt(1.0f - c * c) * sinR;
+}
+// cos(min(pi, angle(a, b) + radius)): the smallest cosine to b over a cone.
+float cosFarthest(const glm::vec3& a, const glm::vec3& b, float cosR, float sinR) {
+  float c = std::clamp(glm::dot(a, b), -1.0f, 1.0f);
+  if (c <= -cosR) return -1.0f;
+  return c * cosR - std::sqrt(1.0f - c * c) * sinR;
+}
 
 // Largest angle from a pixel's centre to its corners, with the margin that
 // covers edges bulging past the corner-to-corner span and rounding.
@@ -47,10 +58,14 @@ std::unique_ptr<HtGeometry> buildGeometry(int order) {
   auto g = std::make_unique<HtGeometry>();
   g->order = order;
   g->centers.resize(MaxAvgTree::levelOffset(order + 1));
+  g->cosSinRadius.resize(g->centers.size());
   for (int l = 0; l <= order; ++l) {
-    glm::vec3* out = g->centers.data() + MaxAvgTree::levelOffset(l);
-    tbb::parallel_for(uint64_t(0), MaxAvgTree::levelSize(l),
-                      [&](uint64_t p) { out[p] = glm::vec3(healpix::pixToVec(l, p)); });
+    const uint64_t offset = MaxAvgTree::levelOffset(l);
+    tbb::parallel_for(uint64_t(0), MaxAvgTree::levelSize(l), [&](uint64_t p) {
+      g->centers[offset + p] = glm::vec3(healpix::pixToVec(l, p));
+      double r = cornerRadius(l, p);
+      g->cosSinRadius[offset + p] = glm::vec2(float(std::cos(r)), float(std::sin(r)));
+    });
   }
   for (int l = 0; l <= std::min(kExactRadiusLevels, healpix::kMaxOrder); ++l) {
     std::vector<double> perFace(12, 0.0);
@@ -92,6 +107,15 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
   woLocal = frame.toLocal(wo);
   mirror = reflectAbout(wo, n);
   if (material.type == MaterialType::Ggx) brdfG1 = ggxG1(woLocal, material.alpha);
+  auto addCap = [&](const glm::vec3& axis, float angle) {
+    Cap c{axis, angle, std::cos(angle), {}, {}};
+    for (size_t l = 0; l < c.cosInside.size(); ++l) {
+      float rad = geometry.levelRadius[l];
+      c.cosInside[l] = angle > rad ? std::cos(angle - rad) : 2.0f;  // 2: never inside
+      c.cosOutside[l] = std::cos(std::min(kPi, angle + rad));
+    }
+    caps.push_back(c);
+  };
   if (options.visibility) {
     // Caps shrink by a milliradian so that "inside" always means blocked.
     constexpr float kMargin = 1e-3f;
@@ -100,12 +124,12 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
       float dist = glm::length(d);
       if (dist <= 0.0f) continue;
       float angle = std::asin(std::min(1.0f, s.radius / dist)) - kMargin;
-      if (angle > 0.0f) caps.push_back({glm::normalize(toFloat(env.toHealpixFrame(d / dist))), angle});
+      if (angle > 0.0f) addCap(glm::normalize(toFloat(env.toHealpixFrame(d / dist))), angle);
     }
     for (const Plane& p : scene.planes) {
       float side = glm::dot(sp.position - p.point, p.normal);
       glm::vec3 below = side >= 0.0f ? -p.normal : p.normal;
-      caps.push_back({glm::normalize(toFloat(env.toHealpixFrame(below))), 0.5f * kPi - kMargin});
+      addCap(glm::normalize(toFloat(env.toHealpixFrame(below))), 0.5f * kPi - kMargin);
     }
   }
   estimateBudget();
@@ -115,39 +139,43 @@ float HtPoint::brdfValue(const glm::vec3& dirHp) const {
   return luminance(evalBsdf(material, woLocal, frame.toLocal(dirHp)));
 }
 
-// Bound of luminance(f cos) over a cone: each lobe bounded by its value at
-// the smallest angle the cone allows (DESIGN.md section 6).
-float HtPoint::brdfBound(const glm::vec3& axis, float radius) const {
-  float toNormal = std::max(0.0f, angleBetween(axis, n) - radius);
-  if (toNormal >= 0.5f * kPi || woLocal.z <= 0.0f) return 0.0f;
-  float cosMax = std::cos(toNormal);
+// Bound of luminance(f cos) over a node's cone: each lobe bounded by its
+// value at the smallest angle the cone allows (DESIGN.md section 6), in
+// cosines so that no inverse trigonometry is needed.
+float HtPoint::brdfBound(uint64_t i) const {
+  const glm::vec3& axis = geometry.centers[i];
+  const float cr = geometry.cosSinRadius[i].x, sr = geometry.cosSinRadius[i].y;
+  float cosMax = cosClosest(axis, n, cr, sr);
+  if (cosMax <= 0.0f || woLocal.z <= 0.0f) return 0.0f;
   float b = luminance(material.diffuse) * kInvPi * cosMax;
   if (material.type == MaterialType::Phong) {
-    float toMirror = std::max(0.0f, angleBetween(axis, mirror) - radius);
-    if (toMirror < 0.5f * kPi)
-      b += luminance(material.specular) * (material.exponent + 2.0f) * 0.5f * kInvPi *
-           std::pow(std::cos(toMirror), material.exponent) * cosMax;
+    float c = cosClosest(axis, mirror, cr, sr);
+    if (c > 0.0f)
+      b += luminance(material.specular) * (material.exponent + 2.0f) * 0.5f * kInvPi * std::pow(c, material.exponent) *
+           cosMax;
   } else if (material.type == MaterialType::Ggx) {
     // Rotating wo about h and about n differ by a rotation of twice their
     // angle, so angle(h, n) >= angle(w, mirror) / 2.
-    float thetaH = 0.5f * std::max(0.0f, angleBetween(axis, mirror) - radius);
-    float d = ggxD(glm::vec3(std::sin(thetaH), 0.0f, std::cos(thetaH)), material.alpha);
+    float cos2H = 0.5f * (1.0f + cosClosest(axis, mirror, cr, sr));
+    float a2 = material.alpha * material.alpha;
+    float d = cos2H * (a2 - 1.0f) + 1.0f;
+    float dMax = a2 / (kPi * d * d);
     // Schlick grows with the half angle between wo and w.
-    float halfMax = std::min(0.5f * kPi, 0.5f * (angleBetween(axis, wo) + radius));
-    float m = 1.0f - std::cos(halfMax);
+    float cosHalf = std::sqrt(std::max(0.0f, 0.5f * (1.0f + cosFarthest(axis, wo, cr, sr))));
+    float m = 1.0f - cosHalf;
     float f0 = luminance(material.specular);
     float fresnel = f0 + (1.0f - f0) * m * m * m * m * m;
-    b += fresnel * d * brdfG1 / (4.0f * woLocal.z);
+    b += fresnel * dMax * brdfG1 / (4.0f * woLocal.z);
   }
   return b;
 }
 
-int HtPoint::visibilityClass(const glm::vec3& axis, float radius) const {
+int HtPoint::visibilityClass(const glm::vec3& axis, int level) const {
   bool partial = false;
   for (const Cap& c : caps) {
-    float delta = angleBetween(axis, c.axis);
-    if (delta + radius <= c.angle) return 0;
-    if (delta - radius < c.angle) partial = true;
+    float d = glm::dot(axis, c.axis);
+    if (d >= c.cosInside[level]) return 0;
+    if (d > c.cosOutside[level]) partial = true;
   }
   return partial ? 2 : 1;
 }
@@ -158,7 +186,7 @@ float HtPoint::visibleFraction(uint64_t leaf) const {
   for (const auto& o : kOffsets) {
     glm::vec3 d = toFloat(healpix::pixToVec(env.order, leaf, o[0], o[1]));
     bool blocked = false;
-    for (const Cap& c : caps) blocked |= glm::dot(d, c.axis) > std::cos(c.angle);
+    for (const Cap& c : caps) blocked |= glm::dot(d, c.axis) > c.cosAngle;
     free += !blocked;
   }
   return std::max(options.visibilityFloor, float(free) / 5.0f);
@@ -169,13 +197,8 @@ float HtPoint::bound(int level, uint64_t node) const {
   float e = env.tree.maxv[i];
   if (e <= 0.0f) return 0.0f;
   const glm::vec3& c = geometry.centers[i];
-  float radius = geometry.levelRadius[level];
-  float b = e * brdfBound(c, radius);
-  if (b > 0.0f && options.visibility && visibilityClass(c, radius) == 0) return 0.0f;
-  // Averages are trusted only over the last levels: higher up, a node's
-  // average says little about the leaves a bright pixel makes.
-  if (options.biased && b > 0.0f && level >= env.order - 1)
-    b = std::min(b, options.biasedPruning * nodeEstimate(level, node));
+  float b = e * brdfBound(i);
+  if (b > 0.0f && options.visibility && visibilityClass(c, level) == 0) return 0.0f;
   return b;
 }
 
@@ -184,11 +207,10 @@ float HtPoint::bound(int level, uint64_t node) const {
 float HtPoint::nodeEstimate(int level, uint64_t node) const {
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
   const glm::vec3& c = geometry.centers[i];
-  float radius = geometry.levelRadius[level];
-  float brdf = std::max(brdfValue(c), options.brdfFloor * brdfBound(c, radius));
+  float brdf = std::max(brdfValue(c), options.brdfFloor * brdfBound(i));
   float vis = 1.0f;
   if (options.visibility) {
-    int cls = visibilityClass(c, radius);
+    int cls = visibilityClass(c, level);
     vis = cls == 0 ? 0.0f : cls == 1 ? 1.0f : 0.5f;
   }
   return env.tree.avgv[i] * brdf * vis;
@@ -200,12 +222,11 @@ float HtPoint::leafValue(uint64_t leaf, float pathMin) const {
   float e = env.tree.avgv[i];
   if (e <= 0.0f || pathMin <= 0.0f) return 0.0f;
   const glm::vec3& c = geometry.centers[i];
-  float radius = geometry.levelRadius[D];
-  float brdfB = brdfBound(c, radius);
+  float brdfB = brdfBound(i);
   if (brdfB <= 0.0f) return 0.0f;
   float h = e * std::max(brdfValue(c), options.brdfFloor * brdfB);
   if (options.visibility) {
-    int cls = visibilityClass(c, radius);
+    int cls = visibilityClass(c, D);
     if (cls == 0) return 0.0f;
     if (cls == 2) h *= visibleFraction(leaf);
   }
@@ -219,9 +240,13 @@ float HtPoint::pathBound(uint64_t leaf) const {
   return m;
 }
 
-int HtPoint::digit(uint32_t pixelSeed, int level, uint64_t node, int child) {
+const std::array<uint8_t, 4>& HtPoint::permutation(uint32_t pixelSeed, int level, uint64_t node) {
   uint32_t h = pcgHash(pixelSeed ^ pcgHash(uint32_t(level) ^ pcgHash(uint32_t(node) ^ pcgHash(uint32_t(node >> 32)))));
-  return kPermutations[h % 24][child];
+  return kPermutations[h % 24];
+}
+
+int HtPoint::digit(uint32_t pixelSeed, int level, uint64_t node, int child) {
+  return permutation(pixelSeed, level, node)[child];
 }
 
 uint64_t HtPoint::lowestCandidate(uint32_t pixelSeed, int level, uint64_t node) {
@@ -289,13 +314,50 @@ void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin
   float b = bound(level, node);
   pathMin = std::min(pathMin, b);
   if (double(r) + w.u >= threshold(b)) return;
+  if (options.biased && stopEarly(w, level, node, r, pathMin)) return;
   if (level == env.order) {
     float h = leafValue(node, pathMin);
     if (h > 0.0f) visitVirtual(w, level, node, r, h, node, 0, 0);
     return;
   }
-  for (int j = 0; j < 4; ++j)
-    visit(w, level + 1, 4 * node + j, r + (uint64_t(digit(w.seed, level, node, j)) << (2 * level)), pathMin);
+  const auto& perm = permutation(w.seed, level, node);
+  for (int j = 0; j < 4; ++j) visit(w, level + 1, 4 * node + j, r + (uint64_t(perm[j]) << (2 * level)), pathMin);
+}
+
+// Biased variant: where the BRDF hardly varies over a node and the node
+// holds a single acceptable candidate, accept it there with the node's
+// average as h and the BRDF at the node's centre as its value. The error is
+// bounded by the smoothness threshold; with more samples per pixel, nodes
+// hold more candidates, the traversal goes deeper and the contributions
+// blend back to exact ones.
+bool HtPoint::stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const {
+  const uint64_t i = MaxAvgTree::levelOffset(level) + node;
+  const glm::vec3& c = geometry.centers[i];
+  float centre = brdfValue(c);
+  if (!(centre > 0.0f) || brdfBound(i) > (1.0f + options.biasedSmoothness) * centre) return false;
+  // The environment keeps its exact value; a node where it varies a lot
+  // would turn that into fireflies.
+  if (env.tree.maxv[i] > 2.0f * env.tree.avgv[i]) return false;
+  if (options.visibility && visibilityClass(c, level) != 1) return false;
+  float h = std::min(pathMin, env.tree.avgv[i] * centre);
+  if (!(h > 0.0f)) return false;
+  const double t = threshold(h);
+  if (double(r) + w.u >= t) return true;
+  if (double(r) + std::ldexp(1.0, 2 * level) + w.u < t) return false;
+  HtSample s;
+  glm::dvec3 hp = healpix::pixToVec(level, node, w.jitter.next(), w.jitter.next());
+  s.dir = env.fromHealpixFrame(hp);
+  s.pixel = healpix::vecToPix(env.order, hp);
+  s.candidate = r;
+  s.face = w.face;
+  s.level = level;
+  s.h = h;
+  s.weight = float(1.0 / (s_ * double(h)));
+  s.averaged = true;
+  s.brdfDir = c;
+  w.out.push_back(s);
+  ++w.counters.samples;
+  return true;
 }
 
 // Cells at and below the data leaf, where h is constant. (sx, sy) locate the
@@ -306,9 +368,10 @@ void HtPoint::visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float
   if (double(r) + w.u >= t) return;
   const double stride = std::ldexp(1.0, 2 * level);
   if (double(r) + stride + w.u < t && level < options.maxLevel) {
+    const auto& perm = permutation(w.seed, level, vnode);
     for (int j = 0; j < 4; ++j)
-      visitVirtual(w, level + 1, 4 * vnode + j, r + (uint64_t(digit(w.seed, level, vnode, j)) << (2 * level)), h,
-                   leaf, 2 * sx + (j & 1), 2 * sy + (j >> 1));
+      visitVirtual(w, level + 1, 4 * vnode + j, r + (uint64_t(perm[j]) << (2 * level)), h, leaf, 2 * sx + (j & 1),
+                   2 * sy + (j >> 1));
     return;
   }
   // One candidate (or, at the deepest level, all that remain), each uniform in the cell.
@@ -324,6 +387,7 @@ void HtPoint::visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float
     s.level = level;
     s.h = h;
     s.weight = float(1.0 / (s_ * double(h)));
+    s.averaged = false;
     w.out.push_back(s);
     ++w.counters.samples;
   }
@@ -346,20 +410,8 @@ glm::vec3 estimateHt(const Scene& scene, const ShadingPoint& sp, const HtOptions
   glm::dvec3 sum(0.0);
   for (const HtSample& s : samples) {
     glm::vec3 radiance = scene.environment.radiance[s.pixel];
-    glm::vec3 fcos;
-    if (options.biased) {
-      // The leaf's average BRDF value instead of the exact one, blended back
-      // to the exact value where the BRDF varies strongly inside the leaf.
-      const uint64_t i = MaxAvgTree::levelOffset(scene.environment.order) + s.pixel;
-      glm::vec3 c = ht.geometry.centers[i];
-      float centre = ht.brdfValue(c);
-      float spread = ht.brdfBound(c, ht.geometry.levelRadius[scene.environment.order]);
-      float exact = centre > 0.0f ? std::clamp(spread / centre - 1.0f, 0.0f, 1.0f) : 1.0f;
-      fcos = (1.0f - exact) * evalBsdf(*sp.material, ht.woLocal, ht.frame.toLocal(c));
-      if (exact > 0.0f) fcos += exact * evalBsdf(*sp.material, woLocal, shading.toLocal(s.dir));
-    } else {
-      fcos = evalBsdf(*sp.material, woLocal, shading.toLocal(s.dir));
-    }
+    glm::vec3 fcos = s.averaged ? evalBsdf(*sp.material, ht.woLocal, ht.frame.toLocal(s.brdfDir))
+                                : evalBsdf(*sp.material, woLocal, shading.toLocal(s.dir));
     if (fcos == glm::vec3(0.0f) || radiance == glm::vec3(0.0f)) continue;
     ++counters.shadowRays;
     if (occluded(scene, origin, s.dir)) continue;

@@ -31,20 +31,22 @@ namespace ht {
 
 struct HtOptions {
   bool visibility = false;     // multiply by the inner-sphere visibility factor
-  bool biased = false;         // aggressive pruning + averaged contributions
+  bool biased = false;         // stop early where the BRDF is smooth, use its average
   int budgetRefinements = 24;  // node splits used to estimate C = integral of h
   float brdfFloor = 1e-3f;     // leaf BRDF factor >= brdfFloor * its bound
   float visibilityFloor = 0.1f;  // leaf visibility factor of a partly covered leaf >= this
   int maxLevel = 24;           // deepest (virtual) level; r stays below 2^48
-  float biasedPruning = 4.0f;  // biased: prune with min(bound, this * estimate)
+  float biasedSmoothness = 0.25f;  // biased: a node is smooth if BRDF bound <= (1 + this) x centre
 };
 
-// Per-level HEALPix geometry shared by every shading point: node centres
-// (HEALPix frame, same layout as the max/avg trees) and, per level, an
-// angular radius that bounds every node of that level.
+// HEALPix geometry shared by every shading point: per node (same layout as
+// the max/avg trees) its centre (HEALPix frame) and the cosine and sine of an
+// angular radius that bounds it; per level, a radius bounding every node of
+// the level (used below the data, for virtual cells, and by visibility caps).
 struct HtGeometry {
   int order = 0;
   std::vector<glm::vec3> centers;
+  std::vector<glm::vec2> cosSinRadius;
   std::array<float, 32> levelRadius{};
 };
 const HtGeometry& htGeometry(int order);
@@ -54,6 +56,10 @@ const HtGeometry& htGeometry(int order);
 struct Cap {
   glm::vec3 axis;
   float angle;  // half-angle, radians
+  float cosAngle;
+  // Per level: a node of that level whose centre has cos(centre, axis) >=
+  // cosInside lies fully inside; <= cosOutside, fully outside.
+  std::array<float, 32> cosInside, cosOutside;
 };
 
 struct HtSample {
@@ -64,6 +70,8 @@ struct HtSample {
   int level;           // level of the cell it was jittered in
   float h;             // acceptance value of the leaf
   float weight;        // 1 / (s h)
+  bool averaged;       // biased: use the BRDF at `brdfDir` instead of at `dir`
+  glm::vec3 brdfDir;   // HEALPix frame: centre of the smooth node
 };
 
 struct HtCounters {
@@ -109,17 +117,20 @@ class HtPoint {
   float brdfG1 = 1.0f;
   std::vector<Cap> caps;
 
-  float brdfBound(const glm::vec3& axis, float radius) const;
+  // Bound over node i (index into the flat per-level layout).
+  float brdfBound(uint64_t i) const;
   float brdfValue(const glm::vec3& dirHp) const;
   // 0: the cone is fully blocked, 1: fully free, 2: partly covered.
-  int visibilityClass(const glm::vec3& axis, float radius) const;
+  int visibilityClass(const glm::vec3& axis, int level) const;
   float visibleFraction(uint64_t leaf) const;
   float nodeEstimate(int level, uint64_t node) const;
 
  private:
   struct Walk;
   void visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const;
+  static const std::array<uint8_t, 4>& permutation(uint32_t pixelSeed, int level, uint64_t node);
   void visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float h, uint64_t leaf, uint64_t sx, uint64_t sy) const;
+  bool stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const;
   void estimateBudget();
 
   double cEst_ = 1.0;

@@ -204,8 +204,8 @@ TEST(Ht, BoundsAreConservative) {
       if (trial % 2 == 0) node = healpix::vecToPix(level, glm::dvec3(ht.mirror));
       float b = ht.bound(level, node);
       const glm::vec3& c = ht.geometry.centers[MaxAvgTree::levelOffset(level) + node];
-      float brdfB = ht.brdfBound(c, ht.geometry.levelRadius[level]);
-      int cls = ht.visibilityClass(c, ht.geometry.levelRadius[level]);
+      float brdfB = ht.brdfBound(MaxAvgTree::levelOffset(level) + node);
+      int cls = ht.visibilityClass(c, level);
       for (int k = 0; k < 50; ++k) {
         double dx = k < 4 ? double(k & 1) : uni(gen), dy = k < 4 ? double(k >> 1) : uni(gen);
         glm::dvec3 hp = healpix::pixToVec(level, node, dx, dy);
@@ -223,7 +223,9 @@ TEST(Ht, BoundsAreConservative) {
         }
       }
     }
-    if (s.name == "diffuse-shadowed") EXPECT_GT(blockedChecked, 0);
+    if (s.name == "diffuse-shadowed") {
+      EXPECT_GT(blockedChecked, 0);
+    }
   }
 }
 
@@ -241,8 +243,14 @@ TEST(Ht, LevelRadiusBoundsEveryNode) {
           pixels.push_back(healpix::xyfToPix(level, ix, iy, f));
     }
     for (int k = 0; k < 2000; ++k) pixels.push_back(gen() % n);
-    for (uint64_t p : pixels)
-      ASSERT_LE(healpix::boundingCone(level, p).radius, double(g.levelRadius[level])) << "level " << level;
+    for (uint64_t p : pixels) {
+      double r = healpix::boundingCone(level, p).radius;
+      ASSERT_LE(r, double(g.levelRadius[level])) << "level " << level;
+      if (level <= g.order) {
+        glm::vec2 cs = g.cosSinRadius[MaxAvgTree::levelOffset(level) + p];
+        ASSERT_LE(r, std::atan2(double(cs.y), double(cs.x)) * (1.0 + 1e-6)) << "level " << level << " pixel " << p;
+      }
+    }
   }
 }
 
@@ -277,6 +285,65 @@ TEST(Ht, UnbiasedAgainstBruteForce) {
         EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
             << s.name << " / " << methodName(m) << " channel " << c << ": mean " << e.mean[c] << " reference "
             << ref[c] << " std error " << e.stdError[c];
+      }
+    }
+  }
+}
+
+// The biased variants: their error is bounded by the smoothness threshold,
+// and falls with the sample count towards the unbiased result, because more
+// samples push acceptance below the smooth nodes, where contributions are
+// exact.
+TEST(Ht, BiasedConvergesToUnbiased) {
+  const int order = 5;
+  std::vector<ShadingSetup> setups;
+  setups.push_back(makeSetup("diffuse-sunrise", sunrise(order), lambert(0.8f), {0.3f, 1.0f, 0.2f}));
+  setups.push_back(makeSetup("phong-sunrise", sunrise(order), phong(20.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
+                             {-0.4f, 0.6f, 0.3f}));
+  setups.push_back(makeSetup("glossy-sun", smallSky(order), ggx(0.2f, glm::vec3(0.9f)), mirrorOf(kSunDir)));
+  const int ns[] = {4, 16, 64, 256};
+  for (const ShadingSetup& s : setups) {
+    const double ref = bruteForceIntegral(s, 16).g;
+    for (Method m : {Method::HtBiased, Method::HtVisBiased}) {
+      double previousMse = INFINITY, previousAveraged = 1.0;
+      for (int n : ns) {
+        const int batches = 400000 / n;
+        MeanAndError e = repeatedEstimates(s, m, batches, n, 777);
+        double bias = e.mean.g - ref;
+        double variance = e.stdError.g * e.stdError.g * batches;
+        double mse = bias * bias + variance;
+        // The share of samples that use an averaged BRDF value falls.
+        HtOptions opt;
+        opt.biased = true;
+        opt.visibility = m == Method::HtVisBiased;
+        ShadingPoint sp = s.sp;
+        sp.material = &s.scene.materials[0];
+        HtPoint ht(s.scene, sp, opt);
+        ht.setBudget(n);
+        uint64_t averaged = 0, total = 0;
+        std::vector<HtSample> samples;
+        for (int run = 0; run < 2000; ++run) {
+          Rng rng(run, 3);
+          samples.clear();
+          HtCounters counters;
+          ht.traverse(rng.nextUint(), rng.next(), rng, samples, counters);
+          for (const HtSample& x : samples) averaged += x.averaged;
+          total += samples.size();
+        }
+        double share = double(averaged) / double(total);
+        EXPECT_LE(share, previousAveraged) << s.name << " n " << n;
+        previousAveraged = share;
+        RecordProperty(s.name + "/" + methodName(m) + "/n" + std::to_string(n),
+                       std::to_string(bias / ref) + " rel bias, " + std::to_string(mse / (ref * ref)) + " relMSE, " +
+                           std::to_string(share) + " averaged");
+        // The BRDF value used differs from the exact one by at most the
+        // smoothness threshold (25%).
+        EXPECT_LT(std::abs(bias), 0.25 * ref + 4.0 * e.stdError.g) << s.name << " n " << n;
+        EXPECT_LT(mse, previousMse) << s.name << " " << methodName(m) << ": error did not fall at n = " << n;
+        previousMse = mse;
+        if (n == ns[3]) {
+          EXPECT_LT(std::abs(bias), 0.01 * ref + 4.0 * e.stdError.g) << s.name << " " << methodName(m);
+        }
       }
     }
   }
