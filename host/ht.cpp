@@ -107,6 +107,13 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
   woLocal = frame.toLocal(wo);
   mirror = reflectAbout(wo, n);
   if (material.type == MaterialType::Ggx) brdfG1 = ggxG1(woLocal, material.alpha);
+  if (options.brdfTable) {
+    table = &BrdfTable::get(material);
+    thetaO = std::acos(std::clamp(woLocal.z, -1.0f, 1.0f));
+    glm::vec3 tangent = wo - glm::dot(wo, n) * n;
+    tableX = glm::length(tangent) > 1e-6f ? glm::normalize(tangent) : frame.s;
+    tableY = glm::cross(n, tableX);
+  }
   auto addCap = [&](const glm::vec3& axis, float angle) {
     Cap c{axis, angle, std::cos(angle), {}, {}};
     for (size_t l = 0; l < c.cosInside.size(); ++l) {
@@ -136,6 +143,7 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
 }
 
 float HtPoint::brdfValue(const glm::vec3& dirHp) const {
+  if (table) return table->average(thetaO, {glm::dot(dirHp, tableX), glm::dot(dirHp, tableY), glm::dot(dirHp, n)});
   return luminance(evalBsdf(material, woLocal, frame.toLocal(dirHp)));
 }
 
@@ -145,6 +153,8 @@ float HtPoint::brdfValue(const glm::vec3& dirHp) const {
 float HtPoint::brdfBound(uint64_t i) const {
   const glm::vec3& axis = geometry.centers[i];
   const float cr = geometry.cosSinRadius[i].x, sr = geometry.cosSinRadius[i].y;
+  if (table)
+    return table->bound(thetaO, {glm::dot(axis, tableX), glm::dot(axis, tableY), glm::dot(axis, n)}, cr, sr);
   float cosMax = cosClosest(axis, n, cr, sr);
   if (cosMax <= 0.0f || woLocal.z <= 0.0f) return 0.0f;
   float b = luminance(material.diffuse) * kInvPi * cosMax;

@@ -22,6 +22,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "brdf_table.h"
 #include "integrator.h"
 #include "rng.h"
 #include "sampling.h"
@@ -31,6 +32,7 @@ namespace ht {
 
 struct HtOptions {
   bool visibility = false;     // multiply by the inner-sphere visibility factor
+  bool brdfTable = false;      // BRDF bounds from tabulated trees instead of cones
   bool biased = false;         // stop early where the BRDF is smooth, use its average
   int budgetRefinements = 24;  // node splits used to estimate C = integral of h
   float brdfFloor = 1e-3f;     // leaf BRDF factor >= brdfFloor * its bound
@@ -116,6 +118,9 @@ class HtPoint {
   glm::vec3 n, wo, mirror;  // HEALPix frame
   float brdfG1 = 1.0f;
   std::vector<Cap> caps;
+  const BrdfTable* table = nullptr;  // tabulated bounds, when chosen
+  glm::vec3 tableX, tableY;          // tangents of the table's frame (wo in its x-z plane)
+  float thetaO = 0.0f;
 
   // Bound over node i (index into the flat per-level layout).
   float brdfBound(uint64_t i) const;

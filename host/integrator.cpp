@@ -70,12 +70,13 @@ glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const g
 }
 
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
-                         EstimateCounters& counters) {
+                         EstimateCounters& counters, const MethodOptions& methodOptions) {
   if (method == Method::Ht || method == Method::HtVis || method == Method::HtBiased ||
       method == Method::HtVisBiased) {
     HtOptions options;
     options.visibility = method == Method::HtVis || method == Method::HtVisBiased;
     options.biased = method == Method::HtBiased || method == Method::HtVisBiased;
+    options.brdfTable = methodOptions.brdfBounds == MethodOptions::BrdfBounds::Table;
     uint32_t pixelSeed = rng.nextUint();
     return estimateHt(scene, sp, options, spp, pixelSeed, rng, counters);
   }

@@ -27,6 +27,12 @@ std::span<const MethodInfo> allMethods();
 std::optional<Method> parseMethod(std::string_view name);
 const char* methodName(Method m);
 
+// Settings of the methods that have any; each field names its method.
+struct MethodOptions {
+  enum class BrdfBounds { Analytic, Table };
+  BrdfBounds brdfBounds = BrdfBounds::Analytic;  // ht*: how the BRDF factor is bounded
+};
+
 struct ShadingPoint {
   glm::vec3 position;
   glm::vec3 normal;  // unit, on the side of wo
@@ -47,6 +53,6 @@ glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const g
 // one BRDF direction per sample, power heuristic); for the HT methods, one
 // traversal with `spp` expected samples.
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
-                         EstimateCounters& counters);
+                         EstimateCounters& counters, const MethodOptions& options = {});
 
 }  // namespace ht

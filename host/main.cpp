@@ -32,6 +32,7 @@ struct RenderOptions {
   uint32_t seed = 1;
   float exposure = 0.0f;
   bool quiet = false;
+  std::string brdfBounds = "analytic";
 };
 
 double secondsSince(std::chrono::steady_clock::time_point t) {
@@ -93,6 +94,8 @@ int runRender(const RenderOptions& o) {
   rs.width = o.width > 0 ? o.width : scene.width;
   rs.height = o.height > 0 ? o.height : scene.height;
   rs.progress = !o.quiet;
+  rs.options.brdfBounds =
+      o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
   RenderResult r = renderCpu(scene, rs);
 
   t0 = std::chrono::steady_clock::now();
@@ -105,6 +108,7 @@ int runRender(const RenderOptions& o) {
       {"scene", scene.path},
       {"method", methodName(rs.method)},
       {"spp", rs.spp},
+      {"brdf_bounds", o.brdfBounds},
       {"width", rs.width},
       {"height", rs.height},
       {"seed", rs.seed},
@@ -151,6 +155,9 @@ int main(int argc, char** argv) {
   render->add_option("--out", o.out, "output EXR; the PNG preview goes next to it")->capture_default_str();
   render->add_option("--stats", o.stats, "write timings and counts as JSON");
   render->add_option("--exposure", o.exposure, "PNG preview exposure in stops")->capture_default_str();
+  render->add_option("--brdf-bounds", o.brdfBounds, "ht*: BRDF bounds from cones (analytic) or tabulated trees (table)")
+      ->check(CLI::IsMember({"analytic", "table"}))
+      ->capture_default_str();
   render->add_flag("--quiet,-q", o.quiet, "no progress or summary on stderr");
 
   CLI::App* methods = app.add_subcommand("methods", "list the sampling methods");

@@ -41,7 +41,7 @@ RenderResult renderCpu(const Scene& scene, const RenderSettings& s) {
         }
         ShadingPoint sp{hit.position, hit.normal, -ray.dir, &scene.materials[hit.material]};
         Rng rng(s.seed, pixelStream(x, y, s.width));
-        out = estimateDirect(scene, sp, s.method, s.spp, rng, local.counters);
+        out = estimateDirect(scene, sp, s.method, s.spp, rng, local.counters, s.options);
         ++local.shaded;
       }
       int done = ++rowsDone;

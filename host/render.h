@@ -18,6 +18,7 @@ struct RenderSettings {
   int width = 512;
   int height = 288;
   bool progress = false;  // percentage on stderr
+  MethodOptions options;
 };
 
 struct RenderResult {

@@ -103,7 +103,8 @@ struct MeanAndError {
 };
 
 // `batches` independent estimates of `spp` samples each, streams 0..batches-1.
-inline MeanAndError repeatedEstimates(const ShadingSetup& s, Method method, int batches, int spp, uint32_t seed) {
+inline MeanAndError repeatedEstimates(const ShadingSetup& s, Method method, int batches, int spp, uint32_t seed,
+                                      const MethodOptions& options = {}) {
   ShadingPoint sp = s.sp;
   sp.material = &s.scene.materials[0];
   struct Acc {
@@ -115,7 +116,7 @@ inline MeanAndError repeatedEstimates(const ShadingSetup& s, Method method, int 
     EstimateCounters counters;
     for (int b = r.begin(); b != r.end(); ++b) {
       Rng rng(seed, uint32_t(b));
-      glm::dvec3 e(estimateDirect(s.scene, sp, method, spp, rng, counters));
+      glm::dvec3 e(estimateDirect(s.scene, sp, method, spp, rng, counters, options));
       a.sum += e;
       a.sumSq += e * e;
     }

@@ -50,9 +50,10 @@ std::vector<ShadingSetup> smallSetups(int order) {
   return s;
 }
 
-HtOptions optionsFor(bool visibility) {
+HtOptions optionsFor(bool visibility, bool table = false) {
   HtOptions o;
   o.visibility = visibility;
+  o.brdfTable = table;
   return o;
 }
 
@@ -79,8 +80,9 @@ std::map<uint64_t, std::multiset<uint64_t>> fullScan(const HtPoint& ht, uint32_t
 TEST(Ht, TraversalAcceptsExactlyTheFullScan) {
   for (int order : {2, 4}) {
     for (const ShadingSetup& s : smallSetups(order)) {
-      for (bool vis : {false, true}) {
-        HtOptions opt = optionsFor(vis);
+      for (int variant = 0; variant < 4; ++variant) {
+        bool vis = variant & 1, table = variant & 2;
+        HtOptions opt = optionsFor(vis, table);
         ShadingPoint sp = s.sp;
         sp.material = &s.scene.materials[0];
         HtPoint ht(s.scene, sp, opt);
@@ -95,7 +97,8 @@ TEST(Ht, TraversalAcceptsExactlyTheFullScan) {
             std::map<uint64_t, std::multiset<uint64_t>> got;
             for (const HtSample& x : samples) got[x.pixel].insert(x.candidate);
             auto want = fullScan(ht, seed, u);
-            ASSERT_EQ(got, want) << s.name << " order " << order << " vis " << vis << " n " << n << " seed " << seed;
+            ASSERT_EQ(got, want) << s.name << " order " << order << " vis " << vis << " table " << table << " n " << n
+                                 << " seed " << seed;
             EXPECT_LT(counters.nodes, MaxAvgTree::levelOffset(order + 1)) << "nothing was pruned";
           }
         }
@@ -190,10 +193,12 @@ TEST(Ht, BoundsAreConservative) {
   setups.push_back(makeSetup("phong-1000", smallSky(order), phong(1000.0f, glm::vec3(0.9f)), {0.3f, 0.8f, 0.1f}));
   std::mt19937_64 gen(42);
   std::uniform_real_distribution<double> uni(0.0, 1.0);
-  for (const ShadingSetup& s : setups) {
+  for (int variant = 0; variant < 2 * int(setups.size()); ++variant) {
+    const ShadingSetup& s = setups[variant / 2];
+    const bool table = variant & 1;
     ShadingPoint sp = s.sp;
     sp.material = &s.scene.materials[0];
-    HtOptions opt = optionsFor(true);
+    HtOptions opt = optionsFor(true, table);
     HtPoint ht(s.scene, sp, opt);
     const Environment& env = s.scene.environment;
     int blockedChecked = 0;
@@ -211,12 +216,14 @@ TEST(Ht, BoundsAreConservative) {
         glm::dvec3 hp = healpix::pixToVec(level, node, dx, dy);
         glm::vec3 w = env.fromHealpixFrame(hp);
         uint64_t leaf = healpix::vecToPix(order, hp);
-        float brdf = ht.brdfValue(glm::vec3(hp));
-        ASSERT_LE(brdf, brdfB * (1.0f + 1e-4f) + 1e-12f) << s.name << " level " << level << " node " << node;
+        float exactBrdf = luminance(evalBsdf(*sp.material, ht.woLocal, ht.frame.toLocal(glm::vec3(hp))));
+        ASSERT_LE(exactBrdf, brdfB * (1.0f + 1e-4f) + 1e-12f)
+            << s.name << (table ? " table" : " analytic") << " level " << level << " node " << node;
         if (k < 4) continue;  // corners may fall in a neighbouring leaf
         bool visible = !occluded(s.scene, offsetRayOrigin(sp.position, sp.normal), w);
-        float product = luminance(env.radiance[leaf]) * brdf * (visible ? 1.0f : 0.0f);
-        ASSERT_LE(product, b * (1.0f + 1e-4f) + 1e-12f) << s.name << " level " << level << " node " << node;
+        float product = luminance(env.radiance[leaf]) * exactBrdf * (visible ? 1.0f : 0.0f);
+        ASSERT_LE(product, b * (1.0f + 1e-4f) + 1e-12f)
+            << s.name << (table ? " table" : " analytic") << " level " << level << " node " << node;
         if (cls == 0) {
           ASSERT_FALSE(visible) << s.name << ": node classified blocked sees the sky";
           ++blockedChecked;
@@ -273,20 +280,24 @@ TEST(Ht, UnbiasedAgainstBruteForce) {
   setups.push_back(makeSetup("black-hemisphere", environmentFromPixels(order, half), ggx(0.3f, glm::vec3(0.5f), glm::vec3(0.4f)),
                              {0.3f, 0.8f, 0.0f}));
   const Method methods[] = {Method::Ht, Method::HtVis};
-  const int tests = int(setups.size()) * 2 * 3;
+  const int tests = int(setups.size()) * 4 * 3;
   const double zCrit = normalQuantileTwoSided(sidakAlpha(0.01, tests));
   for (const ShadingSetup& s : setups) {
     glm::dvec3 ref = bruteForceIntegral(s, 16);
     glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, 8));
-    for (Method m : methods) {
-      MeanAndError e = repeatedEstimates(s, m, 20000, 16, 4321);
-      for (int c = 0; c < 3; ++c) {
-        double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
-        EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
-            << s.name << " / " << methodName(m) << " channel " << c << ": mean " << e.mean[c] << " reference "
-            << ref[c] << " std error " << e.stdError[c];
+    for (Method m : methods)
+      for (auto bounds : {MethodOptions::BrdfBounds::Analytic, MethodOptions::BrdfBounds::Table}) {
+        MethodOptions options;
+        options.brdfBounds = bounds;
+        MeanAndError e = repeatedEstimates(s, m, 10000, 16, 4321, options);
+        for (int c = 0; c < 3; ++c) {
+          double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
+          EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
+              << s.name << " / " << methodName(m) << (bounds == MethodOptions::BrdfBounds::Table ? " table" : "")
+              << " channel " << c << ": mean " << e.mean[c] << " reference " << ref[c] << " std error "
+              << e.stdError[c];
+        }
       }
-    }
   }
 }
 
