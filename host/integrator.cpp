@@ -62,6 +62,15 @@ const char* methodName(Method m) {
   return "?";
 }
 
+void prepareMethod(const Scene& scene, Method method, const MethodOptions& options) {
+  if (method == Method::Ht || method == Method::HtVis || method == Method::HtBiased ||
+      method == Method::HtVisBiased) {
+    htGeometry(scene.environment.order);
+    if (options.brdfBounds == MethodOptions::BrdfBounds::Table)
+      for (const Material& m : scene.materials) BrdfTable::get(m);
+  }
+}
+
 glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi) {
   EstimateCounters unused;
   Shading sh{scene, sp, Frame(sp.normal), {}, offsetRayOrigin(sp.position, sp.normal), unused};

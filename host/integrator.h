@@ -46,6 +46,10 @@ struct EstimateCounters {
   uint64_t htNodes = 0;     // HT tree nodes visited
 };
 
+// Builds the per-process tables a method uses (HEALPix geometry, BRDF
+// tables), so that timing a render does not include them.
+void prepareMethod(const Scene& scene, Method method, const MethodOptions& options);
+
 // f(wo, wi) cos+(n, wi) V(x, wi): the integrand without the radiance.
 glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi);
 

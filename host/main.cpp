@@ -96,6 +96,10 @@ int runRender(const RenderOptions& o) {
   rs.progress = !o.quiet;
   rs.options.brdfBounds =
       o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
+  // One-time tables (HEALPix geometry, BRDF tables) are built here, outside the render timing.
+  t0 = std::chrono::steady_clock::now();
+  prepareMethod(scene, rs.method, rs.options);
+  double tPrepare = secondsSince(t0);
   RenderResult r = renderCpu(scene, rs);
 
   t0 = std::chrono::steady_clock::now();
@@ -121,7 +125,8 @@ int runRender(const RenderOptions& o) {
       {"mean_samples_per_pixel", double(r.counters.directions) / shaded},
       {"mean_shadow_rays_per_pixel", double(r.counters.shadowRays) / shaded},
       {"mean_ht_nodes_per_pixel", double(r.counters.htNodes) / shaded},
-      {"seconds", {{"parse", tParse}, {"environment", tEnv}, {"render", r.seconds}, {"write", tWrite}}},
+      {"seconds",
+       {{"parse", tParse}, {"environment", tEnv}, {"prepare", tPrepare}, {"render", r.seconds}, {"write", tWrite}}},
       {"outputs", {o.out, png.string()}},
   };
   if (!o.stats.empty()) {
@@ -162,6 +167,14 @@ int main(int argc, char** argv) {
 
   CLI::App* methods = app.add_subcommand("methods", "list the sampling methods");
 
+  app.set_version_flag("--version", "htrender " HT_VERSION);
+
+  std::vector<std::string> averageInputs;
+  std::string averageOut;
+  CLI::App* average = app.add_subcommand("average", "mean of several EXR images of the same size");
+  average->add_option("inputs", averageInputs, "EXR files")->required();
+  average->add_option("--out", averageOut, "output EXR")->required();
+
   std::string refPath, testPath;
   CLI::App* compare = app.add_subcommand("compare", "error of an image against a reference, as JSON");
   compare->add_option("--ref", refPath, "reference EXR")->required();
@@ -173,6 +186,8 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::fprintf(stderr, "htrender: error: %s (see --help)\n", e.what());
     return e.get_exit_code() != 0 ? e.get_exit_code() : 1;
@@ -180,6 +195,23 @@ int main(int argc, char** argv) {
   try {
     if (*methods) {
       for (const MethodInfo& m : allMethods()) std::printf("%-10s %s\n", m.name, m.description);
+      return 0;
+    }
+    if (*average) {
+      ImageRGB sum;
+      for (const std::string& path : averageInputs) {
+        ImageRGB img = readExr(path);
+        if (sum.pixels.empty()) {
+          sum = img;
+          continue;
+        }
+        if (img.width != sum.width || img.height != sum.height)
+          throw Error(fmt::format("{}: size {}x{} differs from {}x{}", path, img.width, img.height, sum.width,
+                                  sum.height));
+        for (size_t i = 0; i < sum.pixels.size(); ++i) sum.pixels[i] += img.pixels[i];
+      }
+      for (glm::vec3& p : sum.pixels) p /= float(averageInputs.size());
+      writeExr(averageOut, sum);
       return 0;
     }
     if (*compare) {
