@@ -16,7 +16,7 @@
 
 namespace ht {
 
-enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased };
+enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased, Oracle, Wis, WisBiased, Tsis, Ris };
 
 struct MethodInfo {
   Method method;
@@ -31,6 +31,9 @@ const char* methodName(Method m);
 struct MethodOptions {
   enum class BrdfBounds { Analytic, Table };
   BrdfBounds brdfBounds = BrdfBounds::Analytic;  // ht*: how the BRDF factor is bounded
+  int oracleOrder = 5;                           // oracle: HEALPix level of the brute-force product
+  int risCandidates = 32;                        // ris: candidates M per resampled sample
+  int wisOrder = 5;                              // wis*: HEALPix order of the sampled product (Nside 2^order)
 };
 
 struct ShadingPoint {

@@ -33,6 +33,7 @@ struct RenderOptions {
   float exposure = 0.0f;
   bool quiet = false;
   std::string brdfBounds = "analytic";
+  int oracleOrder = 5;
 };
 
 double secondsSince(std::chrono::steady_clock::time_point t) {
@@ -94,6 +95,7 @@ int runRender(const RenderOptions& o) {
   rs.width = o.width > 0 ? o.width : scene.width;
   rs.height = o.height > 0 ? o.height : scene.height;
   rs.progress = !o.quiet;
+  rs.options.oracleOrder = o.oracleOrder;
   rs.options.brdfBounds =
       o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
   // One-time tables (HEALPix geometry, BRDF tables) are built here, outside the render timing.
@@ -162,6 +164,9 @@ int main(int argc, char** argv) {
   render->add_option("--exposure", o.exposure, "PNG preview exposure in stops")->capture_default_str();
   render->add_option("--brdf-bounds", o.brdfBounds, "ht*: BRDF bounds from cones (analytic) or tabulated trees (table)")
       ->check(CLI::IsMember({"analytic", "table"}))
+      ->capture_default_str();
+  render->add_option("--oracle-order", o.oracleOrder, "oracle: HEALPix level of the brute-force product")
+      ->check(CLI::Range(0, 10))
       ->capture_default_str();
   render->add_flag("--quiet,-q", o.quiet, "no progress or summary on stderr");
 
