@@ -1,0 +1,117 @@
+// Stability where methods fail: every method on every scene of
+// data/scenes/stress, at a small size and a reduced environment resolution,
+// gives finite, non-negative pixels and, at shading points taken from the
+// image, estimates that agree with the brute-force integral (z-test).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "estimator_harness.h"
+#include "render.h"
+
+using namespace ht;
+using namespace ht::test;
+
+namespace {
+
+std::vector<std::string> stressScenes() {
+  std::vector<std::string> files;
+  for (const auto& e : std::filesystem::directory_iterator(std::string(HT_TEST_DATA) + "/scenes/stress"))
+    if (e.path().extension() == ".json") files.push_back(e.path().string());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+Scene loadSmall(const std::string& path, int nside) {
+  Scene s = readSceneFile(path);
+  s.environmentDesc.nside = nside;
+  loadEnvironment(s);
+  return s;
+}
+
+bool biased(Method m) { return m == Method::HtBiased || m == Method::HtVisBiased; }
+
+}  // namespace
+
+TEST(Stress, ScenesExist) { EXPECT_GE(stressScenes().size(), 8u); }
+
+TEST(Stress, EveryMethodGivesFiniteNonNegativePixels) {
+  MethodOptions options;
+  options.oracleOrder = 2;
+  for (const std::string& path : stressScenes()) {
+    Scene scene = loadSmall(path, 16);
+    for (const MethodInfo& m : allMethods()) {
+      RenderSettings rs;
+      rs.method = m.method;
+      rs.spp = 4;
+      rs.width = 24;
+      rs.height = 12;
+      rs.options = options;
+      RenderResult r = renderCpu(scene, rs);
+      int bad = 0;
+      for (const glm::vec3& p : r.image.pixels)
+        for (int c = 0; c < 3; ++c) bad += !(std::isfinite(p[c]) && p[c] >= 0.0f);
+      EXPECT_EQ(bad, 0) << path << " / " << m.name;
+    }
+  }
+}
+
+// Two shading points per scene, from pixels that hit something.
+TEST(Stress, EveryUnbiasedMethodAgreesWithBruteForce) {
+  struct Point {
+    std::string name;
+    ShadingSetup setup;
+  };
+  std::vector<Point> points;
+  for (const std::string& path : stressScenes()) {
+    Scene scene = loadSmall(path, 32);
+    int found = 0;
+    for (float fy : {0.45f, 0.75f, 0.6f, 0.9f}) {
+      for (float fx : {0.3f, 0.7f, 0.5f}) {
+        if (found == 2) break;
+        Ray ray = cameraRay(scene.camera, 64, 32, fx * 64, fy * 32);
+        Hit hit;
+        if (!intersectScene(scene, ray, 0.0f, INFINITY, hit)) continue;
+        ShadingSetup s;
+        s.name = std::filesystem::path(path).stem().string() + " @" + std::to_string(fx) + "," + std::to_string(fy);
+        s.scene = scene;
+        s.sp = {hit.position, hit.normal, -ray.dir, nullptr};
+        // The harness shades material 0: put the hit's material first.
+        std::swap(s.scene.materials[0], s.scene.materials[hit.material]);
+        for (Sphere& sp : s.scene.spheres)
+          sp.material = sp.material == 0 ? hit.material : sp.material == hit.material ? 0 : sp.material;
+        for (Plane& pl : s.scene.planes)
+          pl.material = pl.material == 0 ? hit.material : pl.material == hit.material ? 0 : pl.material;
+        points.push_back({s.name, std::move(s)});
+        ++found;
+      }
+    }
+    EXPECT_EQ(found, 2) << path;
+  }
+  std::vector<MethodInfo> methods;
+  for (const MethodInfo& m : allMethods())
+    if (!biased(m.method)) methods.push_back(m);
+  const int tests = int(points.size() * methods.size());
+  const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
+  MethodOptions options;
+  options.oracleOrder = 3;
+  for (const Point& p : points) {
+    const double ref = bruteForceIntegral(p.setup, 12).g;
+    const double refError = std::abs(ref - bruteForceIntegral(p.setup, 6).g);
+    for (const MethodInfo& m : methods) {
+      // One-direction samplers are cheap and heavy-tailed here: many samples.
+      const bool cheap = m.method == Method::Uniform || m.method == Method::Cosine || m.method == Method::Env ||
+                         m.method == Method::Brdf || m.method == Method::Mis;
+      const int batches = m.method == Method::Oracle ? 1000 : cheap ? 50000 : 4000;
+      MeanAndError e = repeatedEstimates(p.setup, m.method, batches, 8, 2024, options);
+      double se = std::sqrt(e.stdError.g * e.stdError.g + refError * refError);
+      if (se == 0.0) {
+        EXPECT_NEAR(e.mean.g, ref, 1e-6 * ref + 1e-12) << p.name << " / " << m.name;
+        continue;
+      }
+      EXPECT_LT(std::abs(e.mean.g - ref) / se, zCrit)
+          << p.name << " / " << m.name << ": mean " << e.mean.g << " reference " << ref << " std error "
+          << e.stdError.g;
+    }
+  }
+}
