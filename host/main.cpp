@@ -180,6 +180,11 @@ int main(int argc, char** argv) {
   average->add_option("inputs", averageInputs, "EXR files")->required();
   average->add_option("--out", averageOut, "output EXR")->required();
 
+  std::string exportIn, exportOut;
+  CLI::App* exportCmd = app.add_subcommand("export", "write an EXR as PFM (little-endian float RGB), for scripts");
+  exportCmd->add_option("input", exportIn, "EXR file")->required();
+  exportCmd->add_option("--out", exportOut, "PFM file")->required();
+
   std::string refPath, testPath;
   CLI::App* compare = app.add_subcommand("compare", "error of an image against a reference, as JSON");
   compare->add_option("--ref", refPath, "reference EXR")->required();
@@ -217,6 +222,15 @@ int main(int argc, char** argv) {
       }
       for (glm::vec3& p : sum.pixels) p /= float(averageInputs.size());
       writeExr(averageOut, sum);
+      return 0;
+    }
+    if (*exportCmd) {
+      ImageRGB img = readExr(exportIn);
+      std::ofstream f(exportOut, std::ios::binary);
+      f << "PF\n" << img.width << " " << img.height << "\n-1.0\n";
+      for (int y = img.height - 1; y >= 0; --y)  // PFM rows run bottom to top
+        f.write(reinterpret_cast<const char*>(&img.at(0, y)), std::streamsize(sizeof(glm::vec3)) * img.width);
+      if (!f) throw Error(fmt::format("{}: cannot write", exportOut));
       return 0;
     }
     if (*compare) {
