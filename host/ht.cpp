@@ -259,13 +259,26 @@ int HtPoint::digit(uint32_t pixelSeed, int level, uint64_t node, int child) {
   return permutation(pixelSeed, level, node)[child];
 }
 
-uint64_t HtPoint::lowestCandidate(uint32_t pixelSeed, int level, uint64_t node) {
+uint64_t HtPoint::faceDigit(uint32_t pixelSeed, int face) const {
+  if (!options.sphereSequence) return 0;
+  // Fisher-Yates shuffle of the 12 faces, drawn from the pixel seed.
+  std::array<uint8_t, 12> perm;
+  for (int i = 0; i < 12; ++i) perm[i] = uint8_t(i);
+  uint32_t h = pcgHash(pixelSeed ^ 0x9e3779b9u);
+  for (int i = 11; i > 0; --i) {
+    h = pcgHash(h);
+    std::swap(perm[i], perm[h % uint32_t(i + 1)]);
+  }
+  return perm[face];
+}
+
+uint64_t HtPoint::lowestCandidate(uint32_t pixelSeed, int level, uint64_t node) const {
   // Digits of the path from the face root (level 0) down to `node`.
-  uint64_t r = 0;
+  uint64_t r = faceDigit(pixelSeed, int(node >> (2 * level)));
   for (int l = 0; l < level; ++l) {
     uint64_t ancestor = node >> (2 * (level - l));
     int child = int((node >> (2 * (level - l - 1))) & 3);
-    r += uint64_t(digit(pixelSeed, l, ancestor, child)) << (2 * l);
+    r += uint64_t(digit(pixelSeed, l, ancestor, child)) * stride(l);
   }
   return r;
 }
@@ -315,7 +328,7 @@ void HtPoint::traverse(uint32_t pixelSeed, float u, Rng& jitter, std::vector<HtS
   if (s_ <= 0.0) return;
   for (int f = 0; f < 12; ++f) {
     Walk w{pixelSeed, double(u), f, jitter, out, counters};
-    visit(w, 0, uint64_t(f), 0, INFINITY);
+    visit(w, 0, uint64_t(f), faceDigit(pixelSeed, f), INFINITY);
   }
 }
 
@@ -331,7 +344,7 @@ void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin
     return;
   }
   const auto& perm = permutation(w.seed, level, node);
-  for (int j = 0; j < 4; ++j) visit(w, level + 1, 4 * node + j, r + (uint64_t(perm[j]) << (2 * level)), pathMin);
+  for (int j = 0; j < 4; ++j) visit(w, level + 1, 4 * node + j, r + perm[j] * stride(level), pathMin);
 }
 
 // Biased variant: where the BRDF hardly varies over a node and the node
@@ -353,7 +366,7 @@ bool HtPoint::stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pat
   if (!(h > 0.0f)) return false;
   const double t = threshold(h);
   if (double(r) + w.u >= t) return true;
-  if (double(r) + std::ldexp(1.0, 2 * level) + w.u < t) return false;
+  if (double(r) + double(stride(level)) + w.u < t) return false;
   HtSample s;
   glm::dvec3 hp = healpix::pixToVec(level, node, w.jitter.next(), w.jitter.next());
   s.dir = env.fromHealpixFrame(hp);
@@ -376,17 +389,17 @@ void HtPoint::visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float
                            uint64_t sy) const {
   const double t = threshold(h);
   if (double(r) + w.u >= t) return;
-  const double stride = std::ldexp(1.0, 2 * level);
-  if (double(r) + stride + w.u < t && level < options.maxLevel) {
+  const double step = double(stride(level));
+  if (double(r) + step + w.u < t && level < options.maxLevel) {
     const auto& perm = permutation(w.seed, level, vnode);
     for (int j = 0; j < 4; ++j)
-      visitVirtual(w, level + 1, 4 * vnode + j, r + (uint64_t(perm[j]) << (2 * level)), h, leaf, 2 * sx + (j & 1),
+      visitVirtual(w, level + 1, 4 * vnode + j, r + perm[j] * stride(level), h, leaf, 2 * sx + (j & 1),
                    2 * sy + (j >> 1));
     return;
   }
   // One candidate (or, at the deepest level, all that remain), each uniform in the cell.
   const double cells = std::ldexp(1.0, level - env.order);
-  for (double i = double(r); i + w.u < t; i += stride) {
+  for (double i = double(r); i + w.u < t; i += step) {
     double dx = (double(sx) + w.jitter.next()) / cells;
     double dy = (double(sy) + w.jitter.next()) / cells;
     HtSample s;

@@ -37,7 +37,11 @@ struct HtOptions {
   int budgetRefinements = 24;  // node splits used to estimate C = integral of h
   float brdfFloor = 1e-3f;     // leaf BRDF factor >= brdfFloor * its bound
   float visibilityFloor = 0.1f;  // leaf visibility factor of a partly covered leaf >= this
-  int maxLevel = 24;           // deepest (virtual) level; r stays below 2^48
+  int maxLevel = 24;           // deepest (virtual) level; r stays below 12 * 2^48
+  // One candidate sequence over the whole sphere (a 12-way top level with
+  // its own random permutation) instead of 12 independent face sequences:
+  // the faces' counts are then stratified against each other.
+  bool sphereSequence = true;
   float biasedSmoothness = 0.25f;  // biased: a node is smooth if BRDF bound <= (1 + this) x centre
 };
 
@@ -90,7 +94,12 @@ class HtPoint {
   void setBudget(double n);
   double budgetEstimate() const { return cEst_; }
   double scale() const { return s_; }
-  double threshold(float h) const { return s_ * double(h) * kFaceSolidAngle; }
+  // T(h) = s h A, A the measure one candidate sequence covers.
+  double threshold(float h) const {
+    return s_ * double(h) * (options.sphereSequence ? 12.0 * kFaceSolidAngle : kFaceSolidAngle);
+  }
+  // Candidates of a level-l node are r + k * stride(l).
+  uint64_t stride(int level) const { return uint64_t(options.sphereSequence ? 12 : 1) << (2 * level); }
 
   // Upper bound of the product over a node (level <= environment order).
   float bound(int level, uint64_t node) const;
@@ -103,7 +112,9 @@ class HtPoint {
   void traverse(uint32_t pixelSeed, float u, Rng& jitter, std::vector<HtSample>& out, HtCounters& counters) const;
 
   // Lowest candidate index of a node, from the digit permutations on its path.
-  static uint64_t lowestCandidate(uint32_t pixelSeed, int level, uint64_t node);
+  uint64_t lowestCandidate(uint32_t pixelSeed, int level, uint64_t node) const;
+  // The digit of a face in the whole-sphere sequence (0 for face sequences).
+  uint64_t faceDigit(uint32_t pixelSeed, int face) const;
   static int digit(uint32_t pixelSeed, int level, uint64_t node, int child);
 
   static constexpr double kFaceSolidAngle = 4.0 * 3.14159265358979323846 / 12.0;

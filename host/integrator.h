@@ -16,7 +16,7 @@
 
 namespace ht {
 
-enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased, Oracle, Wis, WisBiased, Tsis, Ris };
+enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased, Oracle };
 
 struct MethodInfo {
   Method method;
@@ -32,8 +32,7 @@ struct MethodOptions {
   enum class BrdfBounds { Analytic, Table };
   BrdfBounds brdfBounds = BrdfBounds::Analytic;  // ht*: how the BRDF factor is bounded
   int oracleOrder = 5;                           // oracle: HEALPix level of the brute-force product
-  int risCandidates = 32;                        // ris: candidates M per resampled sample
-  int wisOrder = 5;                              // wis*: HEALPix order of the sampled product (Nside 2^order)
+  bool htSphereSequence = true;                  // ht*: one sequence over the sphere, or one per face
 };
 
 struct ShadingPoint {

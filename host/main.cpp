@@ -34,6 +34,7 @@ struct RenderOptions {
   bool quiet = false;
   std::string brdfBounds = "analytic";
   int oracleOrder = 5;
+  std::string htSequence = "sphere";
 };
 
 double secondsSince(std::chrono::steady_clock::time_point t) {
@@ -96,6 +97,7 @@ int runRender(const RenderOptions& o) {
   rs.height = o.height > 0 ? o.height : scene.height;
   rs.progress = !o.quiet;
   rs.options.oracleOrder = o.oracleOrder;
+  rs.options.htSphereSequence = o.htSequence == "sphere";
   rs.options.brdfBounds =
       o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
   // One-time tables (HEALPix geometry, BRDF tables) are built here, outside the render timing.
@@ -115,6 +117,7 @@ int runRender(const RenderOptions& o) {
       {"method", methodName(rs.method)},
       {"spp", rs.spp},
       {"brdf_bounds", o.brdfBounds},
+      {"ht_sequence", o.htSequence},
       {"width", rs.width},
       {"height", rs.height},
       {"seed", rs.seed},
@@ -164,6 +167,9 @@ int main(int argc, char** argv) {
   render->add_option("--exposure", o.exposure, "PNG preview exposure in stops")->capture_default_str();
   render->add_option("--brdf-bounds", o.brdfBounds, "ht*: BRDF bounds from cones (analytic) or tabulated trees (table)")
       ->check(CLI::IsMember({"analytic", "table"}))
+      ->capture_default_str();
+  render->add_option("--ht-sequence", o.htSequence, "ht*: one candidate sequence over the sphere or one per face")
+      ->check(CLI::IsMember({"sphere", "faces"}))
       ->capture_default_str();
   render->add_option("--oracle-order", o.oracleOrder, "oracle: HEALPix level of the brute-force product")
       ->check(CLI::Range(0, 10))

@@ -67,8 +67,8 @@ std::map<uint64_t, std::multiset<uint64_t>> fullScan(const HtPoint& ht, uint32_t
     float h = ht.leafValue(leaf, ht.pathBound(leaf));
     if (h <= 0.0f) continue;
     double t = ht.threshold(h);
-    uint64_t r = HtPoint::lowestCandidate(seed, D, leaf);
-    for (uint64_t i = r; double(i) + u < t; i += uint64_t(1) << (2 * D)) accepted[leaf].insert(i);
+    uint64_t r = ht.lowestCandidate(seed, D, leaf);
+    for (uint64_t i = r; double(i) + u < t; i += ht.stride(D)) accepted[leaf].insert(i);
   }
   return accepted;
 }
@@ -80,9 +80,10 @@ std::map<uint64_t, std::multiset<uint64_t>> fullScan(const HtPoint& ht, uint32_t
 TEST(Ht, TraversalAcceptsExactlyTheFullScan) {
   for (int order : {2, 4}) {
     for (const ShadingSetup& s : smallSetups(order)) {
-      for (int variant = 0; variant < 4; ++variant) {
+      for (int variant = 0; variant < 8; ++variant) {
         bool vis = variant & 1, table = variant & 2;
         HtOptions opt = optionsFor(vis, table);
+        opt.sphereSequence = variant & 4;
         ShadingPoint sp = s.sp;
         sp.material = &s.scene.materials[0];
         HtPoint ht(s.scene, sp, opt);
@@ -97,8 +98,8 @@ TEST(Ht, TraversalAcceptsExactlyTheFullScan) {
             std::map<uint64_t, std::multiset<uint64_t>> got;
             for (const HtSample& x : samples) got[x.pixel].insert(x.candidate);
             auto want = fullScan(ht, seed, u);
-            ASSERT_EQ(got, want) << s.name << " order " << order << " vis " << vis << " table " << table << " n " << n
-                                 << " seed " << seed;
+            ASSERT_EQ(got, want) << s.name << " order " << order << " vis " << vis << " table " << table
+                                 << " sphere sequence " << opt.sphereSequence << " n " << n << " seed " << seed;
             EXPECT_LT(counters.nodes, MaxAvgTree::levelOffset(order + 1)) << "nothing was pruned";
           }
         }
