@@ -33,6 +33,8 @@ constexpr int kMaxImageDimension = 32768;
 // Reads scanline or tiled EXR, half or float, RGB or RGBA (Y only is read as
 // grey). Throws ht::Error with a one-line message on any problem.
 ImageRGB readExr(const std::string& path);
+// The same from `size` bytes in memory; `name` stands for the file in messages.
+ImageRGB readExrFromMemory(const void* data, size_t size, const std::string& name);
 // Writes linear float RGB (uncompressed-size ZIP). Throws ht::Error.
 void writeExr(const std::string& path, const ImageRGB& image);
 // Writes an 8-bit sRGB preview: value * 2^exposure, clamped, sRGB encoded.

@@ -6,6 +6,9 @@
 #include "env_sampler.h"
 #include "ht.h"
 #include "oracle.h"
+#include "ris.h"
+#include "tsis.h"
+#include "wis.h"
 #include "sampling.h"
 
 namespace ht {
@@ -19,9 +22,13 @@ constexpr std::array kMethods = {
     MethodInfo{Method::Mis, "mis", "one env and one BRDF direction per sample, power heuristic"},
     MethodInfo{Method::Ht, "ht", "hierarchical thresholding of env x BRDF"},
     MethodInfo{Method::HtVis, "ht-vis", "hierarchical thresholding of env x BRDF x visibility"},
-    MethodInfo{Method::HtBiased, "ht-biased", "ht with aggressive pruning and averaged BRDF values"},
-    MethodInfo{Method::HtVisBiased, "ht-vis-biased", "ht-vis with aggressive pruning and averaged BRDF values"},
+    MethodInfo{Method::HtBiased, "ht-biased", "ht with aggressive pruning and averaged BRDF values", true},
+    MethodInfo{Method::HtVisBiased, "ht-vis-biased", "ht-vis with aggressive pruning and averaged BRDF values", true},
     MethodInfo{Method::Oracle, "oracle", "brute-force product env x BRDF x visibility (slow; the variance floor)"},
+    MethodInfo{Method::Wis, "wis", "wavelet importance sampling: warped points on the env x BRDF quadtree, f / p"},
+    MethodInfo{Method::WisBiased, "wis-biased", "wis returning the approximated product x visibility", true},
+    MethodInfo{Method::Tsis, "tsis", "two-stage importance sampling: BRDF-driven regions, env SAT inside"},
+    MethodInfo{Method::Ris, "ris", "resampled importance sampling of env x BRDF from env + BRDF candidates"},
 };
 
 struct Shading {
@@ -71,6 +78,9 @@ void prepareMethod(const Scene& scene, Method method, const MethodOptions& optio
     if (options.brdfBounds == MethodOptions::BrdfBounds::Table)
       for (const Material& m : scene.materials) BrdfTable::get(m);
   }
+  if (method == Method::Wis || method == Method::WisBiased)
+    healpixNodeCenters(std::clamp(options.wisOrder, 0, std::min(scene.environment.order, WisPoint::kMaxOrder)));
+  if (method == Method::Tsis) tsisTable(scene.environment);
 }
 
 glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi) {
@@ -93,6 +103,10 @@ glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method meth
     return estimateHt(scene, sp, options, spp, pixelSeed, rng, counters);
   }
   if (method == Method::Oracle) return estimateOracle(scene, sp, spp, methodOptions.oracleOrder, rng, counters);
+  if (method == Method::Wis || method == Method::WisBiased)
+    return estimateWis(scene, sp, spp, methodOptions.wisOrder, method == Method::WisBiased, rng, counters);
+  if (method == Method::Tsis) return estimateTsis(scene, sp, spp, rng, counters);
+  if (method == Method::Ris) return estimateRis(scene, sp, spp, methodOptions.risCandidates, rng, counters);
   Shading sh{scene, sp, Frame(sp.normal), {}, offsetRayOrigin(sp.position, sp.normal), counters};
   sh.woLocal = sh.frame.toLocal(sp.wo);
   const Material& mat = *sp.material;

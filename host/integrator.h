@@ -16,12 +16,13 @@
 
 namespace ht {
 
-enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased, Oracle };
+enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased, Oracle, Wis, WisBiased, Tsis, Ris };
 
 struct MethodInfo {
   Method method;
   const char* name;
   const char* description;
+  bool biased = false;  // converges to something other than the integral
 };
 std::span<const MethodInfo> allMethods();
 std::optional<Method> parseMethod(std::string_view name);
@@ -33,6 +34,8 @@ struct MethodOptions {
   BrdfBounds brdfBounds = BrdfBounds::Analytic;  // ht*: how the BRDF factor is bounded
   int oracleOrder = 5;                           // oracle: HEALPix level of the brute-force product
   bool htSphereSequence = true;                  // ht*: one sequence over the sphere, or one per face
+  int risCandidates = 32;                        // ris: candidates M per resampled sample
+  int wisOrder = 5;                              // wis*: HEALPix order of the sampled product (Nside 2^order)
 };
 
 struct ShadingPoint {

@@ -1,7 +1,9 @@
 #include "scene.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string_view>
@@ -53,6 +55,8 @@ class Obj {
     if (!has(key)) return fallback;
     const json& v = j_.at(key);
     if (!v.is_number_integer()) fail(fmt::format("\"{}\" must be an integer", key));
+    if (v.is_number_unsigned() && v.get<uint64_t>() > uint64_t(hi))
+      fail(fmt::format("\"{}\" = {} is out of range [{}, {}]", key, v.get<uint64_t>(), lo, hi));
     auto x = v.get<int64_t>();
     if (x < lo || x > hi) fail(fmt::format("\"{}\" = {} is out of range [{}, {}]", key, x, lo, hi));
     return int(x);
@@ -90,6 +94,11 @@ class Obj {
   std::string where_;
 };
 
+constexpr float kMinGgxAlpha = 1e-3f;
+// Brightest scaled radiance accepted: products with the largest BRDF values
+// and pdfs of the renderer must stay finite in single precision.
+constexpr double kMaxRadiance = 1e20;
+
 Material parseMaterial(const Obj& m, const std::string& type) {
   Material mat;
   if (type == "lambert") {
@@ -103,11 +112,35 @@ Material parseMaterial(const Obj& m, const std::string& type) {
   } else {
     mat.type = MaterialType::Ggx;
     mat.alpha = m.number("alpha", 0.0f, 1.0f, true);
+    // Below this, D(h) = alpha^2 / (pi (cos^2 (alpha^2 - 1) + 1)^2) cancels to
+    // 0/0 or x/0 in single precision and poisons the image with NaN.
+    if (mat.alpha < kMinGgxAlpha)
+      m.fail(fmt::format("\"alpha\" = {} is below {}, the smallest roughness evaluated reliably in single precision",
+                         mat.alpha, kMinGgxAlpha));
     if (m.has("f0") == m.has("conductor")) m.fail("ggx needs exactly one of \"f0\" and \"conductor\"");
     mat.specular = m.has("f0") ? m.colour("f0", 0.0f, 1.0f) : m.colour("conductor", 0.0f, 1.0f);
     mat.diffuse = m.colour("diffuse", 0.0f, 1.0f, glm::vec3(0.0f));
   }
   return mat;
+}
+
+// Messages are one line of printable text: control characters (a newline
+// in a library's message, in a file name or a JSON key) are shown escaped.
+std::string oneLine(const std::string& s) {
+  std::string r;
+  r.reserve(s.size());
+  for (char c : s) {
+    if (c == '\n') {
+      r += "\\n";
+    } else if (c == '\r') {
+      r += "\\r";
+    } else if ((unsigned char)c < 0x20 || c == 0x7f) {
+      r += fmt::format("\\x{:02x}", (unsigned)(unsigned char)c);
+    } else {
+      r += c;
+    }
+  }
+  return r;
 }
 
 std::string lineColumn(const std::string& text, size_t byte) {
@@ -125,7 +158,9 @@ std::string lineColumn(const std::string& text, size_t byte) {
 
 }  // namespace
 
-Scene parseScene(const std::string& text, const std::string& path) {
+namespace {
+
+Scene parseSceneText(const std::string& text, const std::string& path) {
   json root;
   try {
     root = json::parse(text);
@@ -134,6 +169,21 @@ Scene parseScene(const std::string& text, const std::string& path) {
     auto colon = msg.rfind(": ");
     throw Error(fmt::format("{}: JSON syntax error at {}: {}", path, lineColumn(text, e.byte ? e.byte - 1 : 0),
                             colon == std::string::npos ? msg : msg.substr(colon + 2)));
+  } catch (const json::out_of_range& e) {
+    // A number literal beyond double (1e400): the message quotes the literal,
+    // whose first occurrence gives the position.
+    std::string msg = e.what();
+    auto open = msg.find('\''), close = msg.rfind('\'');
+    std::string where = "a number";
+    if (open != std::string::npos && close > open + 1) {
+      auto at = text.find(msg.substr(open + 1, close - open - 1));
+      if (at != std::string::npos) where = lineColumn(text, at);
+    }
+    auto bracket = msg.find("] ");
+    throw Error(fmt::format("{}: JSON number out of range at {}: {}", path, where,
+                            oneLine(bracket == std::string::npos ? msg : msg.substr(bracket + 2))));
+  } catch (const json::exception& e) {
+    throw Error(fmt::format("{}: JSON error: {}", path, oneLine(e.what())));
   }
   Scene scene;
   scene.path = path;
@@ -145,6 +195,8 @@ Scene parseScene(const std::string& text, const std::string& path) {
   scene.camera.up = cam.has("up") ? cam.vec3("up") : glm::vec3(0, 1, 0);
   scene.camera.fovY = cam.number("fov", 0.0f, 179.0f, 40.0f, true);
   glm::vec3 forward = scene.camera.lookAt - scene.camera.position;
+  if (!std::isfinite(glm::length(forward)) || !std::isfinite(glm::length(scene.camera.up)))
+    cam.fail("position and look_at too far apart, or up too long, for single precision");
   if (glm::length(forward) < 1e-6f) cam.fail("position and look_at coincide");
   if (glm::length(scene.camera.up) < 1e-6f ||
       glm::length(glm::cross(glm::normalize(forward), glm::normalize(scene.camera.up))) < 1e-4f)
@@ -210,24 +262,56 @@ Scene parseScene(const std::string& text, const std::string& path) {
   return scene;
 }
 
+}  // namespace
+
+Scene parseScene(const std::string& text, const std::string& path) {
+  try {
+    return parseSceneText(text, path);
+  } catch (const Error& e) {
+    // Keys, names and the path come from the user and may hold newlines.
+    throw Error(oneLine(e.what()));
+  }
+}
+
 Scene readSceneFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(fmt::format("{}: cannot open scene file", path));
+  if (!in) throw Error(oneLine(fmt::format("{}: cannot open scene file ({})", path, std::strerror(errno))));
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw Error(oneLine(fmt::format("{}: cannot open scene file (is a directory)", path)));
   std::stringstream ss;
   ss << in.rdbuf();
   return parseScene(ss.str(), path);
 }
 
-void loadEnvironment(Scene& scene) {
+namespace {
+
+void loadEnvironmentFile(Scene& scene) {
   namespace fs = std::filesystem;
   fs::path file = scene.environmentDesc.file;
   if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
   scene.environmentDesc.file = file.lexically_normal().string();
   ImageRGB image = readExr(scene.environmentDesc.file);
   scene.environmentStats = sanitizeEnvironmentImage(image, scene.environmentDesc.file);
+  const double peak = double(scene.environmentStats.maxTexel) * double(scene.environmentDesc.scale);
+  if (peak > kMaxRadiance)
+    throw Error(fmt::format("{}: brightest texel {:g} times environment.scale {:g} = {:g} exceeds {:g}",
+                            scene.environmentDesc.file, scene.environmentStats.maxTexel,
+                            scene.environmentDesc.scale, peak, kMaxRadiance));
   int order = std::countr_zero(unsigned(scene.environmentDesc.nside));
   scene.environment =
       environmentFromEquirect(image, order, scene.environmentDesc.yaw, scene.environmentDesc.scale);
+}
+
+}  // namespace
+
+void loadEnvironment(Scene& scene) {
+  try {
+    loadEnvironmentFile(scene);
+  } catch (const Error& e) {
+    // The map's path comes from the user and may hold newlines.
+    throw Error(oneLine(e.what()));
+  }
 }
 
 Ray cameraRay(const Camera& c, int width, int height, float px, float py) {

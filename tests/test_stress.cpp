@@ -29,7 +29,6 @@ Scene loadSmall(const std::string& path, int nside) {
   return s;
 }
 
-bool biased(Method m) { return m == Method::HtBiased || m == Method::HtVisBiased; }
 
 }  // namespace
 
@@ -90,7 +89,7 @@ TEST(Stress, EveryUnbiasedMethodAgreesWithBruteForce) {
   }
   std::vector<MethodInfo> methods;
   for (const MethodInfo& m : allMethods())
-    if (!biased(m.method)) methods.push_back(m);
+    if (!m.biased) methods.push_back(m);
   const int tests = int(points.size() * methods.size());
   const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
   MethodOptions options;

@@ -1,0 +1,219 @@
+#include "wis.h"
+
+#include <algorithm>
+#include <map>
+#include <memory>
+#include <mutex>
+
+#include <glm/geometric.hpp>
+#include <tbb/parallel_for.h>
+
+#include "healpix.h"
+
+namespace ht {
+
+uint32_t ScrambledSobol02::reverseBits(uint32_t v) {
+  v = ((v >> 1) & 0x55555555u) | ((v & 0x55555555u) << 1);
+  v = ((v >> 2) & 0x33333333u) | ((v & 0x33333333u) << 2);
+  v = ((v >> 4) & 0x0F0F0F0Fu) | ((v & 0x0F0F0F0Fu) << 4);
+  v = ((v >> 8) & 0x00FF00FFu) | ((v & 0x00FF00FFu) << 8);
+  return (v >> 16) | (v << 16);
+}
+
+// Second Sobol' dimension: generator matrix of the primitive polynomial
+// x + 1 (Kollig & Keller, "Efficient multidimensional sampling", 2002).
+uint32_t ScrambledSobol02::sobolSecond(uint32_t i) {
+  uint32_t r = 0;
+  for (uint32_t v = 1u << 31; i; i >>= 1, v ^= v >> 1)
+    if (i & 1u) r ^= v;
+  return r;
+}
+
+glm::dvec2 ScrambledSobol02::point(uint32_t i, Rng& rng) const {
+  constexpr double kBelowOne = 1.0 - 0x1p-53;
+  double x = (double(xBits(i)) + double(rng.next())) * 0x1p-32;
+  double y = (double(yBits(i)) + double(rng.next())) * 0x1p-32;
+  return {std::min(x, kBelowOne), std::min(y, kBelowOne)};
+}
+
+bool splitUnit(double& u, double p) {
+  constexpr double kBelowOne = 1.0 - 0x1p-53;
+  bool first = u < p;
+  u = first ? u / p : (u - p) / (1.0 - p);
+  u = std::clamp(u, 0.0, kBelowOne);
+  return first;
+}
+
+HealpixFrameBrdf::HealpixFrameBrdf(const Environment& env, const Material& m, const glm::vec3& normalWorld,
+                                   const glm::vec3& woWorld)
+    : material(m), frame(glm::normalize(glm::vec3(env.toHealpixFrame(normalWorld)))) {
+  n = frame.n;
+  wo = glm::normalize(glm::vec3(env.toHealpixFrame(woWorld)));
+  woLocal = frame.toLocal(wo);
+}
+
+float HealpixFrameBrdf::scale() const {
+  float s = luminance(material.diffuse);
+  if (material.type != MaterialType::Lambert) s += luminance(material.specular);
+  return s * kInvPi;
+}
+
+const std::vector<glm::vec3>& healpixNodeCenters(int order) {
+  thread_local int lastOrder = -1;
+  thread_local const std::vector<glm::vec3>* last = nullptr;
+  if (order == lastOrder) return *last;
+  static std::mutex mutex;
+  static std::map<int, std::unique_ptr<std::vector<glm::vec3>>> cache;
+  std::lock_guard lock(mutex);
+  auto& c = cache[order];
+  if (!c) {
+    c = std::make_unique<std::vector<glm::vec3>>(MaxAvgTree::levelOffset(order + 1));
+    for (int l = 0; l <= order; ++l) {
+      glm::vec3* out = c->data() + MaxAvgTree::levelOffset(l);
+      tbb::parallel_for(uint64_t(0), MaxAvgTree::levelSize(l),
+                        [&](uint64_t p) { out[p] = glm::vec3(healpix::pixToVec(l, p)); });
+    }
+  }
+  lastOrder = order;
+  last = c.get();
+  return *c;
+}
+
+WisPoint::WisPoint(const Environment& env, const Material& m, const glm::vec3& normalWorld,
+                   const glm::vec3& woWorld, int order)
+    : env_(env),
+      brdf_(env, m, normalWorld, woWorld),
+      centers_(healpixNodeCenters(std::clamp(order, 0, std::min(env.order, kMaxOrder)))),
+      order_(std::clamp(order, 0, std::min(env.order, kMaxOrder))),
+      exactLevel_(std::min(kExactLevels, order_)),
+      floor_(kBrdfFloor * brdf_.scale()) {
+  top_.assign(MaxAvgTree::levelOffset(exactLevel_ + 1), 0.0);
+  const uint64_t base = MaxAvgTree::levelOffset(exactLevel_);
+  for (uint64_t p = 0; p < MaxAvgTree::levelSize(exactLevel_); ++p) top_[base + p] = leafWeight(exactLevel_, p);
+  for (int l = exactLevel_ - 1; l >= 0; --l) {
+    double* parent = top_.data() + MaxAvgTree::levelOffset(l);
+    const double* child = top_.data() + MaxAvgTree::levelOffset(l + 1);
+    for (uint64_t p = 0; p < MaxAvgTree::levelSize(l); ++p)
+      parent[p] = child[4 * p] + child[4 * p + 1] + child[4 * p + 2] + child[4 * p + 3];
+  }
+  for (int f = 0; f < 12; ++f) total_ += top_[f];
+  memo_.reserve(64);
+}
+
+double WisPoint::leafWeight(int level, uint64_t node) const {
+  const float e = env_.tree.avg(level, node);
+  if (!(e > 0.0f)) return 0.0;
+  const glm::vec3& c = centers_[MaxAvgTree::levelOffset(level) + node];
+  return double(e) * (double(brdf_.value(c)) + double(floor_));
+}
+
+std::array<double, 4> WisPoint::childWeights(int level, uint64_t node) const {
+  if (level + 1 <= exactLevel_) {
+    const double* w = top_.data() + MaxAvgTree::levelOffset(level + 1) + 4 * node;
+    return {w[0], w[1], w[2], w[3]};
+  }
+  const uint64_t key = MaxAvgTree::levelOffset(level + 1) + 4 * node;
+  auto it = memo_.find(key);
+  if (it != memo_.end()) return it->second;
+  std::array<double, 4> w;
+  for (int c = 0; c < 4; ++c) w[c] = leafWeight(level + 1, 4 * node + c);
+  memo_.emplace(key, w);
+  return w;
+}
+
+WisSample WisPoint::warp(glm::dvec2 u) const {
+  WisSample s{glm::vec3(0.0f, 1.0f, 0.0f), 0, 0.0, 0.0};
+  if (empty()) return s;
+  // Face: a 1D warp of x over the twelve face weights.
+  const double target = u.x * total_;
+  double acc = 0.0;
+  int face = -1;
+  for (int f = 0; f < 12; ++f) {
+    if (!(top_[f] > 0.0)) continue;
+    face = f;
+    if (target < acc + top_[f]) break;
+    acc += top_[f];
+  }
+  double x = std::clamp((target - acc) / top_[face], 0.0, 1.0 - 0x1p-53);
+  double y = u.y;
+  double prob = top_[face] / total_;
+  uint64_t node = uint64_t(face);
+  for (int level = 0; level < order_; ++level) {
+    const std::array<double, 4> w = childWeights(level, node);
+    const double sum = w[0] + w[1] + w[2] + w[3];
+    const int col = splitUnit(x, (w[0] + w[2]) / sum) ? 0 : 1;
+    const int row = splitUnit(y, w[col] / (w[col] + w[col + 2])) ? 0 : 1;
+    const int child = col + 2 * row;
+    prob *= w[child] / sum;
+    node = 4 * node + uint64_t(child);
+  }
+  s.pixel = node;
+  s.probability = prob;
+  s.pdf = prob / healpix::pixelSolidAngle(order_);
+  s.dir = env_.fromHealpixFrame(healpix::pixToVec(order_, node, x, y));
+  return s;
+}
+
+double WisPoint::pixelProbability(uint64_t pixel) const {
+  if (empty()) return 0.0;
+  const int face = int(pixel >> (2 * order_));
+  double prob = top_[face] / total_;
+  for (int level = 0; level < order_ && prob > 0.0; ++level) {
+    const uint64_t node = pixel >> (2 * (order_ - level));
+    const int child = int((pixel >> (2 * (order_ - level - 1))) & 3u);
+    const std::array<double, 4> w = childWeights(level, node);
+    prob *= w[child] / (w[0] + w[1] + w[2] + w[3]);
+  }
+  return prob;
+}
+
+double WisPoint::pdf(const glm::vec3& worldDir) const {
+  return pixelProbability(healpix::vecToPix(order_, env_.toHealpixFrame(worldDir))) /
+         healpix::pixelSolidAngle(order_);
+}
+
+glm::vec3 WisPoint::approximateProduct(uint64_t pixel) const {
+  const uint64_t count = uint64_t(1) << (2 * (env_.order - order_));
+  glm::dvec3 sum(0.0);
+  for (uint64_t p = pixel * count; p < (pixel + 1) * count; ++p) sum += glm::dvec3(env_.radiance[p]);
+  const glm::vec3 average(sum / double(count));
+  if (average == glm::vec3(0.0f)) return average;
+  return average * brdf_.rgb(centers_[MaxAvgTree::levelOffset(order_) + pixel]);
+}
+
+glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int order, bool biased, Rng& rng,
+                      EstimateCounters& counters) {
+  const Environment& env = scene.environment;
+  if (!env.hasLight() || spp <= 0) return glm::vec3(0.0f);
+  const Material& mat = *sp.material;
+  WisPoint wis(env, mat, sp.normal, sp.wo, order);
+  if (wis.empty()) return glm::vec3(0.0f);
+  const Frame frame(sp.normal);
+  const glm::vec3 woLocal = frame.toLocal(sp.wo);
+  const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
+  const double pixelSolidAngle = healpix::pixelSolidAngle(wis.order());
+  const ScrambledSobol02 points(rng);
+  glm::dvec3 sum(0.0);
+  for (int i = 0; i < spp; ++i) {
+    const WisSample s = wis.warp(points.point(uint32_t(i), rng));
+    ++counters.directions;
+    if (!(s.probability > 0.0)) continue;
+    glm::dvec3 value;
+    if (biased) {
+      const glm::vec3 product = wis.approximateProduct(s.pixel);
+      if (product == glm::vec3(0.0f)) continue;
+      value = glm::dvec3(product) * (pixelSolidAngle / s.probability);
+    } else {
+      const glm::vec3 radiance = env.eval(s.dir);
+      if (radiance == glm::vec3(0.0f)) continue;
+      const glm::vec3 fcos = evalBsdf(mat, woLocal, frame.toLocal(s.dir));
+      if (fcos == glm::vec3(0.0f)) continue;
+      value = glm::dvec3(radiance * fcos) / s.pdf;
+    }
+    ++counters.shadowRays;
+    if (!occluded(scene, origin, s.dir)) sum += value;
+  }
+  return glm::vec3(sum / double(spp));
+}
+
+}  // namespace ht

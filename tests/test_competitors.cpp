@@ -1,0 +1,435 @@
+// The samplers HT is compared against: resampled importance sampling (ris),
+// two-stage importance sampling (tsis) and wavelet importance sampling (wis,
+// wis-biased). Each sampler's directions against its own density
+// (chi-square), each estimator's mean against a brute-force integral
+// (z-tests, Sidak-corrected), and the properties that make them what they
+// are (exact density bookkeeping, stratification, convergence of RIS to its
+// target, wis-biased's error against the WIS resolution).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <map>
+
+#include <glm/geometric.hpp>
+
+#include "chi2.h"
+#include "env_sampler.h"
+#include "estimator_harness.h"
+#include "healpix.h"
+#include "image_io.h"
+#include "ris.h"
+#include "tsis.h"
+#include "wis.h"
+
+using namespace ht;
+using namespace ht::test;
+
+namespace {
+
+constexpr int kEnvOrder = 5;  // Nside 32: brute force over all pixels stays cheap
+
+const Environment& sunrise() {
+  static const Environment env = [] {
+    ImageRGB img = readExr(std::string(HT_TEST_DATA) + "/env/sunrise.exr");
+    sanitizeEnvironmentImage(img, "sunrise.exr");
+    return environmentFromEquirect(img, kEnvOrder, 0.0f, 1.0f);
+  }();
+  return env;
+}
+
+const glm::vec3 kSunDir = glm::normalize(glm::vec3(0.5f, 0.6f, 0.3f));
+
+// A dim sky with a single bright pixel; `blackHalf` blacks out the first
+// half of the nested pixels (the northern faces and part of the equator).
+Environment onePixelSun(float background = 0.02f, bool blackHalf = false) {
+  std::vector<glm::vec3> px(healpix::pixelCount(kEnvOrder), glm::vec3(background));
+  if (blackHalf)
+    for (size_t p = 0; p < px.size() / 2; ++p) px[p] = glm::vec3(0.0f);
+  Environment probe = constantEnvironment(kEnvOrder, glm::vec3(1.0f));
+  px[probe.pixelOf(kSunDir)] = glm::vec3(2000.0f, 1800.0f, 1500.0f);
+  return environmentFromPixels(kEnvOrder, std::move(px));
+}
+
+glm::vec3 mirrorOf(glm::vec3 d) { return {-d.x, d.y, -d.z}; }
+
+// Shading points on the plane y = 0 (normal +y) as in test_estimators.cpp:
+// a small sun with a glossy lobe, a sun shadowed by a sphere, an occluded
+// Phong lobe under a real map, a sharp GGX lobe, a grazing view.
+std::vector<ShadingSetup> unbiasednessSetups() {
+  std::vector<ShadingSetup> s;
+  s.push_back(makeSetup("ggx0.3-sun", onePixelSun(), ggx(0.3f, glm::vec3(0.04f), glm::vec3(0.5f)), mirrorOf(kSunDir)));
+  s.push_back(makeSetup("diffuse-sun-shadowed", onePixelSun(), lambert(0.8f), {0.0f, 1.0f, 0.3f},
+                        {{2.0f * kSunDir, 0.4f, 0}}));
+  s.push_back(makeSetup("phong-sunrise-occluded", sunrise(), phong(40.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
+                        {-0.4f, 0.6f, 0.3f}, {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}}));
+  s.push_back(makeSetup("ggx0.08-sunrise", sunrise(), ggx(0.08f, glm::vec3(1.0f, 0.78f, 0.34f)), {0.2f, 0.5f, -0.8f}));
+  s.push_back(makeSetup("ggx0.25-grazing-sunrise", sunrise(), ggx(0.25f, glm::vec3(0.95f)),
+                        {std::sin(1.48f), std::cos(1.48f), 0.0f}));
+  return s;
+}
+
+struct Reference {
+  glm::dvec3 value;
+  glm::dvec3 error;  // |fine - coarse| brute force: the reference's own error
+};
+
+// Brute-force integrals, computed once per setup name.
+const Reference& reference(const ShadingSetup& s) {
+  static std::map<std::string, Reference> cache;
+  auto it = cache.find(s.name);
+  if (it != cache.end()) return it->second;
+  Reference r;
+  r.value = bruteForceIntegral(s, 12);
+  r.error = glm::abs(r.value - bruteForceIntegral(s, 6));
+  return cache.emplace(s.name, r).first->second;
+}
+
+// --- chi-square of the samplers against their own densities ---------------
+
+struct DensityCase {
+  std::string name;
+  std::function<glm::vec3(Rng&)> sample;  // world direction
+  std::function<double(glm::vec3)> pdf;   // of a world direction
+  const Environment* env;                 // bins are pixels of its HEALPix frame
+  int binOrder;
+  int subdiv;  // midpoint rule per bin for the expected counts
+  int samples;
+};
+
+void runChiSquare(const std::vector<DensityCase>& all) {
+  const double alpha = sidakAlpha(0.01, int(all.size()));
+  for (const DensityCase& c : all) {
+    const Environment& env = *c.env;
+    std::vector<double> expected = expectedCountsHealpix(
+        c.binOrder, c.subdiv, [&](glm::dvec3 d) { return c.pdf(env.fromHealpixFrame(d)); }, c.samples);
+    std::vector<uint64_t> observed(expected.size(), 0);
+    Rng rng(17, 0);
+    for (int i = 0; i < c.samples; ++i) {
+      const glm::vec3 d = c.sample(rng);
+      ASSERT_TRUE(std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z) && glm::length(d) > 0.5f)
+          << c.name << ": sample " << i << " is not a direction";
+      ++observed[binIndex(c.binOrder, env.toHealpixFrame(d))];
+    }
+    double mass = 0.0;
+    for (double e : expected) mass += e;
+    EXPECT_NEAR(mass / c.samples, 1.0, 2e-3) << c.name << ": the density does not integrate to one";
+    Chi2Result r = chi2Test(observed, expected);
+    EXPECT_GT(r.pValue, alpha) << c.name << ": " << describe(r, observed, expected);
+  }
+}
+
+// The shading frames of the density cases: a normal that is not the map's
+// pole, so that no face or pixel border lines up with the horizon.
+const glm::vec3 kTiltedNormal = glm::normalize(glm::vec3(0.3f, 1.0f, -0.2f));
+
+glm::vec3 viewAt(const glm::vec3& n, float thetaDeg) {
+  Frame f(n);
+  float t = thetaDeg * kPi / 180.0f;
+  return f.toWorld({std::sin(t), 0.0f, std::cos(t)});
+}
+
+}  // namespace
+
+// Deterministic: the first 2^m points of the scrambled sequence are a
+// (0,m,2)-net (one point in every dyadic box of area 2^-m), whatever the shift.
+TEST(Competitors, SobolPointsAreNets) {
+  for (uint32_t shift : {0u, 0x9e3779b9u, 0x7f4a7c15u}) {
+    ScrambledSobol02 seq(shift, ~shift * 2654435761u);
+    for (int m = 0; m <= 10; ++m) {
+      for (int bx = 0; bx <= m; ++bx) {
+        const int by = m - bx;
+        std::vector<int> hits(size_t(1) << m, 0);
+        for (uint32_t i = 0; i < (1u << m); ++i) {
+          const uint32_t cx = bx == 0 ? 0 : seq.xBits(i) >> (32 - bx);
+          const uint32_t cy = by == 0 ? 0 : seq.yBits(i) >> (32 - by);
+          ++hits[(cy << bx) | cx];
+        }
+        EXPECT_EQ(*std::min_element(hits.begin(), hits.end()), 1) << "m " << m << " box " << bx << "x" << by;
+      }
+    }
+  }
+  // And continuous points stay inside [0,1)^2.
+  Rng rng(3, 0);
+  ScrambledSobol02 seq(rng);
+  for (uint32_t i = 0; i < 10000; ++i) {
+    glm::dvec2 u = seq.point(i, rng);
+    ASSERT_TRUE(u.x >= 0.0 && u.x < 1.0 && u.y >= 0.0 && u.y < 1.0);
+  }
+}
+
+// Warped directions follow the density each sampler reports for any
+// direction, for single uniform points and for the stratified point sets the
+// estimators use (those only make the counts less dispersed).
+TEST(Competitors, ChiSquareAgainstOwnPdf) {
+  static const Environment sunHalf = onePixelSun(0.05f, true);
+  const Material gloss = ggx(0.2f, glm::vec3(0.9f, 0.7f, 0.4f), glm::vec3(0.1f));
+  const Material sharp = phong(200.0f, glm::vec3(0.6f), glm::vec3(0.2f));
+  const Material chalk = lambert(0.8f);
+  const glm::vec3 n = kTiltedNormal;
+  std::vector<DensityCase> cases;
+
+  auto tsis = [&](std::string name, const Environment& env, const Material& m, float view, int regions, int satLevel,
+                  int sets) {
+    auto p = std::make_shared<TsisPoint>(env, m, n, viewAt(n, view), regions, satLevel);
+    const int count = 300000;
+    std::function<glm::vec3(Rng&)> sample = [p](Rng& rng) {
+      return p->warp({double(rng.next()) + 0x1p-24 * rng.next(), double(rng.next()) + 0x1p-24 * rng.next()}).dir;
+    };
+    if (sets > 1) {  // `sets` points per scrambled sequence, consecutive draws share it
+      auto state = std::make_shared<std::pair<int, ScrambledSobol02>>(0, ScrambledSobol02(0u, 0u));
+      sample = [p, state, sets](Rng& rng) {
+        if (state->first % sets == 0) state->second = ScrambledSobol02(rng);
+        return p->warp(state->second.point(uint32_t(state->first++ % sets), rng)).dir;
+      };
+    }
+    cases.push_back({std::move(name), sample, [p](glm::vec3 d) { return p->pdf(d); }, &env, env.order, 2, count});
+  };
+  tsis("tsis-ggx-sunrise", sunrise(), gloss, 40, TsisPoint::kDefaultRegions, TsisTable::kMaxLevel, 1);
+  tsis("tsis-phong-sun-black-half-grazing", sunHalf, sharp, 80, 16, TsisTable::kMaxLevel, 1);
+  tsis("tsis-lambert-sunrise-sat-level-3", sunrise(), chalk, 10, 64, 3, 1);
+  tsis("tsis-ggx-sunrise-stratified-sets", sunrise(), gloss, 40, TsisPoint::kDefaultRegions, TsisTable::kMaxLevel, 16);
+
+  auto wis = [&](std::string name, const Environment& env, const Material& m, float view, int order, int sets) {
+    auto p = std::make_shared<WisPoint>(env, m, n, viewAt(n, view), order);
+    const int count = 300000;
+    std::function<glm::vec3(Rng&)> sample = [p](Rng& rng) {
+      return p->warp({double(rng.next()) + 0x1p-24 * rng.next(), double(rng.next()) + 0x1p-24 * rng.next()}).dir;
+    };
+    if (sets > 1) {
+      auto state = std::make_shared<std::pair<int, ScrambledSobol02>>(0, ScrambledSobol02(0u, 0u));
+      sample = [p, state, sets](Rng& rng) {
+        if (state->first % sets == 0) state->second = ScrambledSobol02(rng);
+        return p->warp(state->second.point(uint32_t(state->first++ % sets), rng)).dir;
+      };
+    }
+    // The density is constant on the pixels of the WIS order: bins one level finer.
+    const int binOrder = std::min(p->order() + 1, 5);
+    cases.push_back({std::move(name), sample, [p](glm::vec3 d) { return p->pdf(d); }, &env, binOrder, 2, count});
+  };
+  wis("wis-5-ggx-sunrise", sunrise(), gloss, 40, 5, 1);
+  wis("wis-3-ggx-sunrise", sunrise(), gloss, 40, 3, 1);
+  wis("wis-4-phong-sun-black-half-grazing", sunHalf, sharp, 80, 4, 1);
+  wis("wis-2-lambert-sunrise-stratified-sets", sunrise(), chalk, 10, 2, 16);
+
+  // RIS candidates follow the mixture of env and BRDF sampling (with one
+  // candidate, RIS keeps it: RisWithOneCandidateIsTheMixture).
+  auto ris = [&](std::string name, const Environment& env, const Material& m, float view) {
+    auto p = std::make_shared<RisSampler>(env, m, n, viewAt(n, view));
+    cases.push_back({std::move(name), [p](Rng& rng) { return p->candidate(rng).dir; },
+                     [p](glm::vec3 d) { return double(p->mixturePdf(d)); }, &env, 5, 12, 500000});
+  };
+  ris("ris-m1-ggx-sunrise", sunrise(), gloss, 40);
+  ris("ris-m1-phong-sun-black-half-grazing", sunHalf, sharp, 80);
+
+  runChiSquare(cases);
+}
+
+// With M = 1, RIS keeps its one candidate whenever the target is positive there,
+// with the contribution weight 1 / p_mix: it is the mixture sampler, whose
+// candidates pass the chi-square test above.
+TEST(Competitors, RisWithOneCandidateIsTheMixture) {
+  const Material gloss = ggx(0.2f, glm::vec3(0.9f, 0.7f, 0.4f), glm::vec3(0.1f));
+  const glm::vec3 n = kTiltedNormal;
+  RisSampler ris(sunrise(), gloss, n, viewAt(n, 60));
+  int kept = 0;
+  for (uint32_t i = 0; i < 20000; ++i) {
+    Rng a(8, i), b(8, i);
+    const RisCandidate c = ris.candidate(a);
+    const RisSample s = ris.sample(1, b);
+    if (c.target > 0.0f) {
+      ++kept;
+      ASSERT_EQ(s.chosen.dir, c.dir);
+      ASSERT_NEAR(s.contributionWeight() * c.mixturePdf, 1.0, 1e-6);
+      ASSERT_NEAR(c.mixturePdf, ris.mixturePdf(c.dir), 1e-4 * c.mixturePdf + 1e-7);
+      ASSERT_NEAR(c.target, ris.target(c.dir), 1e-4 * c.target + 1e-9);
+    } else {
+      ASSERT_EQ(s.contributionWeight(), 0.0);
+    }
+  }
+  EXPECT_GT(kept, 10000);
+}
+
+// The density returned with a sample is the density of its direction, and
+// summed over all pixels the pixel probabilities are one.
+TEST(Competitors, SampleDensityMatchesDensityOfDirection) {
+  const Material gloss = ggx(0.15f, glm::vec3(0.9f), glm::vec3(0.2f));
+  const glm::vec3 n = kTiltedNormal, wo = viewAt(n, 50);
+  for (int satLevel : {TsisTable::kMaxLevel, 2}) {
+    TsisPoint t(sunrise(), gloss, n, wo, 40, satLevel);
+    ASSERT_FALSE(t.empty());
+    // The regions tile the twelve faces.
+    uint64_t covered = 0;
+    double prob = 0.0;
+    for (const TsisRegion& r : t.regions()) {
+      covered += uint64_t(r.x1 - r.x0) * (r.y1 - r.y0);
+      prob += r.probability;
+    }
+    EXPECT_EQ(covered, healpix::pixelCount(t.table().level));
+    EXPECT_NEAR(prob, 1.0, 1e-12);
+    EXPECT_LE(t.regions().size(), 40u);
+    EXPECT_GT(t.regions().size(), 12u) << "no BRDF-driven split";
+    Rng rng(5, 0);
+    int mismatches = 0;
+    for (int i = 0; i < 20000; ++i) {
+      TsisSample s = t.warp({rng.next(), rng.next()});
+      ASSERT_GT(s.pdf, 0.0);
+      if (std::abs(t.pdf(s.dir) - s.pdf) > 1e-6 * s.pdf) ++mismatches;
+    }
+    EXPECT_LE(mismatches, 10) << "sat level " << satLevel;
+  }
+  for (int order : {0, 3, 5}) {
+    WisPoint w(sunrise(), gloss, n, wo, order);
+    ASSERT_EQ(w.order(), order);
+    double total = 0.0;
+    for (uint64_t p = 0; p < healpix::pixelCount(order); ++p) total += w.pixelProbability(p);
+    EXPECT_NEAR(total, 1.0, 1e-9) << "order " << order;
+    Rng rng(6, 0);
+    int mismatches = 0, elsewhere = 0;
+    for (int i = 0; i < 20000; ++i) {
+      WisSample s = w.warp({rng.next(), rng.next()});
+      ASSERT_GT(s.pdf, 0.0);
+      // A float direction may round onto a neighbouring pixel's border.
+      if (healpix::vecToPix(order, sunrise().toHealpixFrame(s.dir)) != s.pixel) ++elsewhere;
+      if (std::abs(w.pdf(s.dir) - s.pdf) > 1e-9 * s.pdf) ++mismatches;
+    }
+    EXPECT_LE(elsewhere, 10) << "order " << order;
+    EXPECT_LE(mismatches, 10) << "order " << order;
+  }
+  // The WIS order is clamped to the map's.
+  EXPECT_EQ(WisPoint(sunrise(), gloss, n, wo, 9).order(), kEnvOrder);
+}
+
+// Each estimator's mean over many independent estimates matches the brute
+// force (z-tests, Sidak-corrected over setups, configurations and channels).
+// wis-biased has a known expectation too: the integral of its approximated
+// product, sum over WIS pixels of (env average x f cos at the centre) x solid
+// angle, where nothing is in the way.
+TEST(Competitors, UnbiasedAgainstBruteForce) {
+  struct Config {
+    std::string name;
+    Method method;
+    MethodOptions options;
+    int batches, spp;
+  };
+  std::vector<Config> configs;
+  MethodOptions o;
+  configs.push_back({"ris M=32", Method::Ris, o, 4000, 4});
+  o.risCandidates = 3;
+  configs.push_back({"ris M=3", Method::Ris, o, 8000, 8});
+  o = {};
+  configs.push_back({"tsis", Method::Tsis, o, 8000, 16});
+  configs.push_back({"wis order 5", Method::Wis, o, 8000, 16});
+  o.wisOrder = 3;
+  configs.push_back({"wis order 3", Method::Wis, o, 8000, 16});
+
+  const std::vector<ShadingSetup> setups = unbiasednessSetups();
+  const int tests = int(setups.size() * configs.size() * 3) + 3;
+  const double zCrit = normalQuantileTwoSided(sidakAlpha(0.01, tests));
+  auto check = [&](const std::string& what, const MeanAndError& e, glm::dvec3 ref, glm::dvec3 refError) {
+    for (int c = 0; c < 3; ++c) {
+      double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
+      ASSERT_GT(se, 0.0) << what;
+      EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
+          << what << " channel " << c << ": mean " << e.mean[c] << " reference " << ref[c] << " std error "
+          << e.stdError[c];
+    }
+  };
+  for (const ShadingSetup& s : setups) {
+    const Reference& ref = reference(s);
+    ASSERT_GT(ref.value.g, 0.0) << s.name;
+    EXPECT_LT(ref.error.g, 1e-2 * ref.value.g) << s.name << ": brute force not converged";
+    for (const Config& c : configs) {
+      MeanAndError e = repeatedEstimates(s, c.method, c.batches, c.spp, 2024, c.options);
+      check(s.name + " / " + c.name, e, ref.value, ref.error);
+    }
+  }
+
+  // wis-biased against its own expectation (unoccluded setup).
+  const ShadingSetup& s = setups[3];
+  MethodOptions wo;
+  wo.wisOrder = 4;
+  WisPoint w(s.scene.environment, s.scene.materials[0], s.sp.normal, s.sp.wo, wo.wisOrder);
+  glm::dvec3 expectation(0.0);
+  for (uint64_t p = 0; p < healpix::pixelCount(wo.wisOrder); ++p)
+    expectation += glm::dvec3(w.approximateProduct(p)) * healpix::pixelSolidAngle(wo.wisOrder);
+  MeanAndError e = repeatedEstimates(s, Method::WisBiased, 4000, 16, 77, wo);
+  check(s.name + " / wis-biased expectation", e, expectation, glm::dvec3(0.0));
+}
+
+// wis-biased converges as the WIS order rises: its error against the brute
+// force falls from order to order, by more than the noise.
+TEST(Competitors, WisBiasedErrorFallsWithOrder) {
+  const ShadingSetup s = makeSetup("ggx0.2-sunrise", sunrise(), ggx(0.2f, glm::vec3(0.9f, 0.7f, 0.4f)),
+                                   {0.2f, 0.5f, -0.8f}, {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}});
+  const Reference& ref = reference(s);
+  double previous = INFINITY, previousSe = 0.0;
+  for (int order : {1, 2, 3, 4, 5}) {
+    MethodOptions o;
+    o.wisOrder = order;
+    MeanAndError e = repeatedEstimates(s, Method::WisBiased, 3000, 16, 9, o);
+    const double err = std::abs(e.mean.g - ref.value.g) / ref.value.g;
+    const double se = (e.stdError.g + ref.error.g) / ref.value.g;
+    std::printf("wis-biased order %d: relative error %.4f (+- %.4f)\n", order, err, se);
+    EXPECT_LT(err + 3.0 * se, previous - 3.0 * previousSe) << "order " << order;
+    previous = err;
+    previousSe = se;
+  }
+}
+
+// RIS converges to its target: with more candidates the kept direction's
+// distribution h approaches t = p_hat / integral of p_hat. Measured on
+// equal-area bins by the Pearson divergence sum (h - t)^2 / t, less its
+// expected sampling noise, which falls like 1/M; with one candidate (the
+// mixture) it is far from zero.
+TEST(Competitors, RisApproachesTargetAsCandidatesGrow) {
+  const Environment& env = sunrise();
+  const Material m = ggx(0.2f, glm::vec3(0.9f, 0.7f, 0.4f));
+  const glm::vec3 n = kTiltedNormal;
+  RisSampler ris(env, m, n, viewAt(n, 40));
+  constexpr int kBinOrder = 2;
+  std::vector<double> target = expectedCountsHealpix(
+      kBinOrder, 16, [&](glm::dvec3 d) { return double(ris.target(env.fromHealpixFrame(d))); }, 1.0);
+  double norm = 0.0;
+  for (double t : target) norm += t;
+  for (double& t : target) t /= norm;
+  auto divergence = [&](int candidates, int samples) {
+    std::vector<double> hist(target.size(), 0.0);
+    Rng rng(21, uint32_t(candidates));
+    int kept = 0;
+    for (int i = 0; i < samples; ++i) {
+      RisSample s = ris.sample(candidates, rng);
+      if (!(s.contributionWeight() > 0.0)) continue;
+      ++kept;
+      hist[binIndex(kBinOrder, env.toHealpixFrame(s.chosen.dir))] += 1.0;
+    }
+    double d = 0.0;
+    for (size_t b = 0; b < hist.size(); ++b) {
+      const double h = hist[b] / kept;
+      if (target[b] <= 0.0) {
+        EXPECT_EQ(hist[b], 0.0) << "a direction kept where the target is zero";
+        continue;
+      }
+      d += ((h - target[b]) * (h - target[b]) - h * (1.0 - h) / kept) / target[b];
+    }
+    return d;
+  };
+  const double d1 = divergence(1, 40000), d4 = divergence(4, 40000), d32 = divergence(32, 20000);
+  std::printf("RIS divergence from the target: M=1 %.4f, M=4 %.4f, M=32 %.4f\n", d1, d4, d32);
+  EXPECT_GT(d1, 0.05);
+  EXPECT_LT(d4, 0.4 * d1);
+  EXPECT_LT(d32, 0.4 * d4);
+}
+
+// An all-black map or a black material: exactly zero, never NaN.
+TEST(Competitors, BlackIsZero) {
+  ShadingSetup black = makeSetup("black", constantEnvironment(2, glm::vec3(0.0f)), ggx(0.3f, glm::vec3(0.5f)),
+                                 {0.0f, 1.0f, 0.3f});
+  Material none = lambert(0.0f);
+  ShadingSetup dark = makeSetup("black-material", sunrise(), none, {0.0f, 1.0f, 0.3f});
+  for (Method m : {Method::Ris, Method::Tsis, Method::Wis, Method::WisBiased}) {
+    EXPECT_EQ(repeatedEstimates(black, m, 50, 4, 1).mean, glm::dvec3(0.0)) << methodName(m);
+    EXPECT_EQ(repeatedEstimates(dark, m, 50, 4, 1).mean, glm::dvec3(0.0)) << methodName(m);
+  }
+}
