@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/info.h>
 
+#include "gpu_render.h"
 #include "render.h"
 #include "scene.h"
 
@@ -25,6 +26,7 @@ struct RenderOptions {
   std::string scene = "data/scenes/spheres.json";
   std::string method = "mis";
   std::string device = "auto";
+  int gpuIndex = -1;
   std::string out = "out/render.exr";
   std::string stats;
   int spp = 16;
@@ -64,6 +66,65 @@ void checkWritable(const std::string& path) {
   if (fs::exists(p) && access(p.c_str(), W_OK) != 0) throw Error(fmt::format("{}: output file is not writable", path));
 }
 
+// --device gpu: the Vulkan path, or a one-line error. auto: the Vulkan path
+// on a discrete, integrated or virtual GPU; with no loader, no driver or only
+// a CPU implementation (lavapipe), the CPU reference, and `why` says so.
+std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, Method method, std::string& why) {
+  if (!gpuSupportsMethod(method)) {
+    if (o.device == "gpu")
+      throw Error(fmt::format("--device gpu: method {} runs on the CPU reference only (the GPU path renders uniform, "
+                              "cosine, env, brdf and mis); use --device cpu", methodName(method)));
+    why = fmt::format("method {} has no GPU version yet", methodName(method));
+    return nullptr;
+  }
+  try {
+    GpuOptions g;
+    g.deviceIndex = o.gpuIndex;
+    if (o.device == "auto" && o.gpuIndex < 0) {
+      std::vector<GpuDeviceInfo> devices = listGpuDevices();
+      int best = defaultGpuDevice(devices);
+      if (best < 0) {
+        why = "no usable Vulkan device";
+        return nullptr;
+      }
+      if (devices[best].type == "cpu") {
+        why = fmt::format("no GPU; the CPU Vulkan device {} runs with --device gpu", devices[best].name);
+        return nullptr;
+      }
+      g.deviceIndex = best;
+    }
+    return std::make_unique<GpuRenderer>(g);
+  } catch (const Error& e) {
+    if (o.device == "gpu") throw Error(fmt::format("--device gpu: {}", e.what()));
+    why = e.what();
+    return nullptr;
+  }
+}
+
+int runInfo() {
+  std::vector<GpuDeviceInfo> devices = listGpuDevices();
+  int best = defaultGpuDevice(devices);
+  std::printf("Vulkan devices (--gpu-index N picks one; default: discrete > integrated > virtual > cpu):\n");
+  for (const GpuDeviceInfo& d : devices) {
+    std::printf("  [%u] %s\n", d.index, d.name.c_str());
+    std::printf("      type %s, driver %s, Vulkan %s, %.1f GiB device-local\n", d.type.c_str(), d.driver.c_str(),
+                d.apiVersion.c_str(), double(d.deviceLocalBytes) / double(1ull << 30));
+    std::printf("      features used: scalarBlockLayout, bufferDeviceAddress (required); shaderFloat64 %s; "
+                "timestamps %s\n",
+                d.shaderFloat64 ? "yes (HEALPix lookups in double)" : "no (single-precision shader)",
+                d.timestamps ? fmt::format("yes ({:g} ns)", d.timestampPeriodNs).c_str() : "no");
+    std::printf("      limits: storage buffer range %.0f MiB, push constants %u B, subgroup %u\n",
+                double(d.maxStorageBufferRange) / double(1 << 20), d.maxPushConstantsSize, d.subgroupSize);
+    std::printf("      usable: %s\n", d.usable ? "yes" : ("no, " + d.unusableReason).c_str());
+  }
+  if (best < 0)
+    std::printf("--device gpu: no usable device; --device auto: the CPU reference\n");
+  else
+    std::printf("--device gpu uses [%d] %s; --device auto uses %s\n", best, devices[best].name.c_str(),
+                devices[best].type == "cpu" ? "the CPU reference (no GPU)" : "it too");
+  return 0;
+}
+
 int runRender(const RenderOptions& o) {
   auto method = parseMethod(o.method);
   if (!method) {
@@ -71,7 +132,6 @@ int runRender(const RenderOptions& o) {
     for (const MethodInfo& m : allMethods()) names += std::string(names.empty() ? "" : ", ") + m.name;
     throw Error(fmt::format("unknown method \"{}\" (one of: {})", o.method, names));
   }
-  if (o.device == "gpu") throw Error("--device gpu: the Vulkan path is not part of this build yet; use --device cpu");
   if (fs::path(o.out).extension() != ".exr") throw Error(fmt::format("{}: --out must end in .exr", o.out));
   fs::path png = fs::path(o.out).replace_extension(".png");
   checkWritable(o.out);
@@ -79,6 +139,11 @@ int runRender(const RenderOptions& o) {
   if (!o.stats.empty()) checkWritable(o.stats);
 
   auto t0 = std::chrono::steady_clock::now();
+  std::string cpuWhy;
+  std::unique_ptr<GpuRenderer> gpu = o.device == "cpu" ? nullptr : openGpu(o, *method, cpuWhy);
+  double tDevice = secondsSince(t0);
+
+  t0 = std::chrono::steady_clock::now();
   Scene scene = readSceneFile(resolveScene(o.scene));
   double tParse = secondsSince(t0);
   t0 = std::chrono::steady_clock::now();
@@ -88,7 +153,11 @@ int runRender(const RenderOptions& o) {
     std::fprintf(stderr, "warning: %s: clamped %llu tiny negative texel value(s) to 0\n",
                  scene.environmentDesc.file.c_str(), (unsigned long long)scene.environmentStats.clampedNegativeTexels);
 
-  if (o.device == "auto" && !o.quiet) std::fprintf(stderr, "device: cpu reference (no Vulkan path in this build)\n");
+  if (!o.quiet && gpu)
+    std::fprintf(stderr, "device: gpu %s (%s, Vulkan %s)\n", gpu->device().name.c_str(), gpu->device().type.c_str(),
+                 gpu->device().apiVersion.c_str());
+  else if (!o.quiet && o.device == "auto")
+    std::fprintf(stderr, "device: cpu reference (%s)\n", cpuWhy.c_str());
   RenderSettings rs;
   rs.method = *method;
   rs.spp = o.spp;
@@ -104,7 +173,18 @@ int runRender(const RenderOptions& o) {
   t0 = std::chrono::steady_clock::now();
   prepareMethod(scene, rs.method, rs.options);
   double tPrepare = secondsSince(t0);
-  RenderResult r = renderCpu(scene, rs);
+  RenderResult r;
+  double tUpload = 0.0, tGpu = -1.0;
+  if (gpu) {
+    t0 = std::chrono::steady_clock::now();
+    gpu->setScene(scene);
+    tUpload = secondsSince(t0);
+    GpuRenderResult g = gpu->render(rs);
+    r = std::move(g.result);
+    tGpu = g.gpuSeconds;
+  } else {
+    r = renderCpu(scene, rs);
+  }
 
   t0 = std::chrono::steady_clock::now();
   writeExr(o.out, r.image);
@@ -121,7 +201,10 @@ int runRender(const RenderOptions& o) {
       {"width", rs.width},
       {"height", rs.height},
       {"seed", rs.seed},
-      {"device", {{"type", "cpu"}, {"name", cpuName()}, {"threads", tbb::info::default_concurrency()}}},
+      {"device", gpu ? nlohmann::json{{"type", "gpu"}, {"name", gpu->device().name}, {"vulkan_type", gpu->device().type},
+                                        {"driver", gpu->device().driver}, {"vulkan", gpu->device().apiVersion},
+                                        {"shader", gpu->shaderName()}}
+                     : nlohmann::json{{"type", "cpu"}, {"name", cpuName()}, {"threads", tbb::info::default_concurrency()}}},
       {"environment",
        {{"file", scene.environmentDesc.file},
         {"nside", scene.environment.nside()},
@@ -134,6 +217,11 @@ int runRender(const RenderOptions& o) {
        {{"parse", tParse}, {"environment", tEnv}, {"prepare", tPrepare}, {"render", r.seconds}, {"write", tWrite}}},
       {"outputs", {o.out, png.string()}},
   };
+  if (gpu) {
+    stats["seconds"]["device"] = tDevice;
+    stats["seconds"]["upload"] = tUpload;
+    stats["seconds"]["gpu"] = tGpu >= 0.0 ? nlohmann::json(tGpu) : nlohmann::json(nullptr);
+  }
   if (!o.stats.empty()) {
     std::ofstream f(o.stats);
     f << stats.dump(2) << "\n";
@@ -159,6 +247,8 @@ int main(int argc, char** argv) {
   render->add_option("--device", o.device, "cpu | gpu | auto")
       ->check(CLI::IsMember({"cpu", "gpu", "auto"}))
       ->capture_default_str();
+  render->add_option("--gpu-index", o.gpuIndex, "Vulkan device for --device gpu/auto (see `htrender info`)")
+      ->check(CLI::NonNegativeNumber);
   render->add_option("--width", o.width, "image width (default: the scene's)")->check(CLI::Range(1, 16384));
   render->add_option("--height", o.height, "image height (default: the scene's)")->check(CLI::Range(1, 16384));
   render->add_option("--seed", o.seed, "random seed")->capture_default_str();
@@ -177,6 +267,7 @@ int main(int argc, char** argv) {
   render->add_flag("--quiet,-q", o.quiet, "no progress or summary on stderr");
 
   CLI::App* methods = app.add_subcommand("methods", "list the sampling methods");
+  CLI::App* info = app.add_subcommand("info", "list the Vulkan devices and the features the GPU path uses");
 
   app.set_version_flag("--version", "htrender " HT_VERSION);
 
@@ -209,6 +300,7 @@ int main(int argc, char** argv) {
     return e.get_exit_code() != 0 ? e.get_exit_code() : 1;
   }
   try {
+    if (*info) return runInfo();
     if (*methods) {
       for (const MethodInfo& m : allMethods()) std::printf("%-10s %s\n", m.name, m.description);
       return 0;

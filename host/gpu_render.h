@@ -1,0 +1,82 @@
+// The Vulkan compute path: renders the baseline methods (uniform, cosine,
+// env, brdf, mis) exactly as renderCpu does, with the same random numbers,
+// on any Vulkan 1.2 device (lavapipe included). The scene is uploaded once;
+// images are rendered in tiles so that no dispatch runs for long.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "render.h"
+#include "scene.h"
+#include "vk/validation_log.h"
+
+namespace ht {
+
+struct GpuOptions {
+  int deviceIndex = -1;     // --gpu-index; -1: discrete > integrated > virtual > CPU
+  bool validation = false;  // Khronos validation layer, messages counted in validationLog
+  std::shared_ptr<vk::ValidationLog> validationLog;  // null: the renderer keeps its own
+  bool forceFp32 = false;   // use the single-precision shader even where fp64 exists
+  std::string shaderDir;    // empty: shaders/ next to the executable
+  int maxTileSide = 512;    // tiles are at most this many pixels wide and high (a multiple of 8)
+};
+
+// One Vulkan device, as `htrender info` lists it.
+struct GpuDeviceInfo {
+  uint32_t index = 0;
+  std::string name;
+  std::string type;  // discrete, integrated, virtual, cpu, other
+  std::string driver;
+  std::string apiVersion;
+  bool usable = false;
+  std::string unusableReason;
+  bool shaderFloat64 = false;
+  bool timestamps = false;
+  double timestampPeriodNs = 0.0;
+  uint64_t maxStorageBufferRange = 0;
+  uint32_t maxPushConstantsSize = 0;
+  uint32_t subgroupSize = 0;
+  uint64_t deviceLocalBytes = 0;
+};
+
+// Throws ht::Error (one line) when there is no loader or no driver.
+std::vector<GpuDeviceInfo> listGpuDevices();
+// The device the renderer picks by default, or -1.
+int defaultGpuDevice(const std::vector<GpuDeviceInfo>& devices);
+// True for the methods the shaders implement.
+bool gpuSupportsMethod(Method method);
+// <directory of the running executable>/shaders.
+std::string shaderDirNextToExecutable();
+
+struct GpuRenderResult {
+  RenderResult result;      // image, wall seconds, counters, as renderCpu
+  double gpuSeconds = -1.0; // sum of the dispatches' timestamps; < 0 without timestamps
+  int tiles = 0;
+};
+
+class GpuRenderer {
+ public:
+  explicit GpuRenderer(const GpuOptions& options = {});
+  ~GpuRenderer();
+  GpuRenderer(const GpuRenderer&) = delete;
+  GpuRenderer& operator=(const GpuRenderer&) = delete;
+
+  // Uploads the scene's environment (radiance, max/avg trees), materials
+  // and shapes; once per scene.
+  void setScene(const Scene& scene);
+  GpuRenderResult render(const RenderSettings& settings);
+
+  const GpuDeviceInfo& device() const;
+  bool float64() const;  // HEALPix lookups in double (HT_FP64 shader)
+  std::string shaderName() const;
+  const vk::ValidationLog& validationLog() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ht

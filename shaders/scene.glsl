@@ -1,0 +1,126 @@
+// Camera, analytic spheres and planes: host/scene.cpp in GLSL.
+#ifndef HT_SCENE_GLSL
+#define HT_SCENE_GLSL
+
+#include "bindings.glsl"
+#include "math.glsl"
+
+struct Ray {
+  vec3 origin;
+  vec3 dir;  // unit
+};
+
+struct Hit {
+  float t;
+  vec3 position;
+  vec3 normal;  // geometric, unit, facing the incoming ray
+  uint material;
+};
+
+// cameraRay with the basis and tan(fov / 2) computed on the host (GpuScene).
+Ray cameraRay(float px, float py) {
+  precise float aspect = float(pc.width) / float(pc.height);
+  precise float sx = (2.0 * px / float(pc.width) - 1.0) * scene.tanHalfFov * aspect;
+  precise float sy = (1.0 - 2.0 * py / float(pc.height)) * scene.tanHalfFov;
+  Ray r;
+  r.origin = scene.camPosition;
+  precise vec3 d = scene.camW + sx * scene.camU + sy * scene.camV;
+  r.dir = normalize3(d);
+  return r;
+}
+
+// Ray/sphere with the numerically careful discriminant of Haines et al.
+bool hitSphere(GpuSphere s, Ray ray, float tMin, float tMax, out float t) {
+  precise vec3 f = ray.origin - s.center;
+  precise float b = -dot3(f, ray.dir);
+  precise vec3 l = f + b * ray.dir;
+  precise float disc = s.radius * s.radius - dot3(l, l);
+  t = 0.0;
+  if (disc < 0.0) return false;
+  precise float c = dot3(f, f) - s.radius * s.radius;
+  precise float q = b + copySign(sqrt(disc), b);
+  precise float t0 = q != 0.0 ? c / q : 0.0;
+  float t1 = q;
+  if (t0 > t1) {
+    float tmp = t0;
+    t0 = t1;
+    t1 = tmp;
+  }
+  if (t0 > tMin && t0 < tMax) {
+    t = t0;
+    return true;
+  }
+  if (t1 > tMin && t1 < tMax) {
+    t = t1;
+    return true;
+  }
+  return false;
+}
+
+bool hitPlane(GpuPlane p, Ray ray, float tMin, float tMax, out float t) {
+  precise float denom = dot3(p.normal, ray.dir);
+  t = 0.0;
+  if (denom == 0.0) return false;
+  precise float tt = dot3(p.point - ray.origin, p.normal) / denom;
+  if (!(tt > tMin && tt < tMax)) return false;
+  t = tt;
+  return true;
+}
+
+// Nearest hit with t in (tMin, tMax).
+bool intersectScene(Ray ray, float tMin, float tMax, out Hit hit) {
+  bool any = false;
+  float t;
+  hit.t = 0.0;
+  hit.position = vec3(0.0);
+  hit.normal = vec3(0.0);
+  hit.material = 0u;
+  for (uint i = 0u; i < scene.sphereCount; ++i) {
+    GpuSphere s = spheres[i];
+    if (hitSphere(s, ray, tMin, tMax, t)) {
+      tMax = t;
+      any = true;
+      hit.t = t;
+      precise vec3 p = ray.origin + t * ray.dir;
+      hit.position = p;
+      precise vec3 outward = p - s.center;
+      hit.normal = normalize3(outward);
+      hit.material = s.material;
+    }
+  }
+  for (uint i = 0u; i < scene.planeCount; ++i) {
+    GpuPlane pl = planes[i];
+    if (hitPlane(pl, ray, tMin, tMax, t)) {
+      tMax = t;
+      any = true;
+      hit.t = t;
+      precise vec3 p = ray.origin + t * ray.dir;
+      hit.position = p;
+      hit.normal = pl.normal;
+      hit.material = pl.material;
+    }
+  }
+  if (any && dot3(hit.normal, ray.dir) > 0.0) hit.normal = -hit.normal;
+  return any;
+}
+
+// True if anything blocks the ray leaving `origin` in direction `dir`.
+bool occluded(vec3 origin, vec3 dir) {
+  Ray ray;
+  ray.origin = origin;
+  ray.dir = dir;
+  float t;
+  for (uint i = 0u; i < scene.sphereCount; ++i)
+    if (hitSphere(spheres[i], ray, 0.0, kInfinity, t)) return true;
+  for (uint i = 0u; i < scene.planeCount; ++i)
+    if (hitPlane(planes[i], ray, 0.0, kInfinity, t)) return true;
+  return false;
+}
+
+// Origin for rays leaving a surface point, pushed off along the normal.
+precise vec3 offsetRayOrigin(vec3 p, vec3 n) {
+  precise float scale = 1.0 + max(max(abs(p.x), abs(p.y)), abs(p.z));
+  return p + n * (1e-4 * scale);
+}
+
+#endif
