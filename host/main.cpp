@@ -16,6 +16,7 @@
 #include "gpu_render.h"
 #include "render.h"
 #include "scene.h"
+#include "wis.h"
 
 namespace fs = std::filesystem;
 using namespace ht;
@@ -36,6 +37,8 @@ struct RenderOptions {
   bool quiet = false;
   std::string brdfBounds = "analytic";
   int oracleOrder = 5;
+  int risCandidates = 32;
+  int wisOrder = 5;
   std::string htSequence = "sphere";
 };
 
@@ -166,6 +169,8 @@ int runRender(const RenderOptions& o) {
   rs.height = o.height > 0 ? o.height : scene.height;
   rs.progress = !o.quiet;
   rs.options.oracleOrder = o.oracleOrder;
+  rs.options.risCandidates = o.risCandidates;
+  rs.options.wisOrder = o.wisOrder;
   rs.options.htSphereSequence = o.htSequence == "sphere";
   rs.options.brdfBounds =
       o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
@@ -263,6 +268,13 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   render->add_option("--oracle-order", o.oracleOrder, "oracle: HEALPix level of the brute-force product")
       ->check(CLI::Range(0, 10))
+      ->capture_default_str();
+  render->add_option("--ris-candidates", o.risCandidates, "ris: candidates M per resampled sample")
+      ->check(CLI::Range(1, 4096))
+      ->capture_default_str();
+  render->add_option("--wis-order", o.wisOrder,
+                     "wis*: HEALPix order of the sampled product (Nside 2^order, at most the environment's)")
+      ->check(CLI::Range(0, WisPoint::kMaxOrder))
       ->capture_default_str();
   render->add_flag("--quiet,-q", o.quiet, "no progress or summary on stderr");
 
