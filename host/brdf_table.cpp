@@ -117,6 +117,12 @@ float BrdfTable::bound(float thetaO, const glm::vec3& wi, float cosRadius, float
   return m;
 }
 
+std::vector<float> BrdfTable::flattened() const {
+  std::vector<float> out(averages_);
+  for (const std::vector<float>& level : maxima_) out.insert(out.end(), level.begin(), level.end());
+  return out;
+}
+
 float BrdfTable::average(float thetaO, const glm::vec3& wi) const {
   if (wi.z <= 0.0f) return 0.0f;
   const float dTheta = kHalfPi / kTheta, dPhi = kPi / kPhi;

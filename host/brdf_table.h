@@ -38,6 +38,9 @@ class BrdfTable {
   // Average interpolated at a direction.
   float average(float thetaO, const glm::vec3& wiLocal) const;
 
+  // The averages, then the max pyramid's levels, back to back (the GPU's copy).
+  std::vector<float> flattened() const;
+
  private:
   int levels_ = 0;
   // maxima_[level][k] : pyramid of maxima per thetaO bin, level 0 = cells

@@ -14,8 +14,12 @@
 #include <glm/geometric.hpp>
 
 #include "common.h"  // shaders/common.h
+#include "brdf_table.h"
 #include "healpix.h"
+#include "ht.h"
 #include "sampling.h"
+#include "tsis.h"
+#include "wis.h"
 #include "vk/buffers.h"
 #include "vk/device.h"
 #include "vk/pipeline.h"
@@ -34,6 +38,15 @@ static_assert(int(Method::Uniform) == HT_METHOD_UNIFORM && int(Method::Cosine) =
               int(Method::Mis) == HT_METHOD_MIS && int(Method::Ht) == HT_METHOD_HT &&
               int(Method::HtVis) == HT_METHOD_HT_VIS && int(Method::HtBiased) == HT_METHOD_HT_BIASED &&
               int(Method::HtVisBiased) == HT_METHOD_HT_VIS_BIASED);
+static_assert(int(Method::Oracle) == HT_METHOD_ORACLE && int(Method::Wis) == HT_METHOD_WIS &&
+              int(Method::WisBiased) == HT_METHOD_WIS_BIASED && int(Method::Tsis) == HT_METHOD_TSIS &&
+              int(Method::Ris) == HT_METHOD_RIS);
+static_assert(TsisPoint::kDefaultRegions == HT_TSIS_REGIONS && TsisTable::kMaxLevel == HT_TSIS_MAX_LEVEL);
+static_assert(WisPoint::kExactLevels == HT_WIS_EXACT_LEVELS && WisPoint::kMaxOrder == HT_WIS_MAX_ORDER &&
+              MaxAvgTree::levelOffset(HT_WIS_EXACT_LEVELS + 1) == HT_WIS_TOP_NODES);
+// The largest summed-area table fits one buffer (GpuScene::tsisSat).
+static_assert(12ull * ((1ull << HT_TSIS_MAX_LEVEL) + 1) * ((1ull << HT_TSIS_MAX_LEVEL) + 1) * sizeof(double) <=
+              (96ull << 20));
 static_assert(int(MaterialType::Lambert) == HT_MATERIAL_LAMBERT && int(MaterialType::Phong) == HT_MATERIAL_PHONG &&
               int(MaterialType::Ggx) == HT_MATERIAL_GGX);
 
@@ -110,7 +123,9 @@ int defaultGpuDevice(const std::vector<GpuDeviceInfo>& devices) {
 }
 
 bool gpuSupportsMethod(Method m) {
-  return m == Method::Uniform || m == Method::Cosine || m == Method::Env || m == Method::Brdf || m == Method::Mis;
+  return m == Method::Uniform || m == Method::Cosine || m == Method::Env || m == Method::Brdf || m == Method::Mis ||
+         m == Method::Tsis || m == Method::Ris || m == Method::Wis || m == Method::WisBiased || m == Method::Ht ||
+         m == Method::HtVis || m == Method::HtBiased || m == Method::HtVisBiased;
 }
 
 std::string shaderDirNextToExecutable() {
@@ -125,6 +140,8 @@ struct GpuRenderer::Impl {
   GpuDeviceInfo info;
   std::string shaderName;
   std::optional<vk::ComputePipeline> pipeline;
+  std::string shaderPath;
+  uint32_t pipelineMethod = HT_METHOD_ANY;  // what the pipeline is specialized for
   VkQueryPool queries = VK_NULL_HANDLE;
   uint64_t timestampMask = 0;
   uint32_t maxTileSide = 512;
@@ -135,15 +152,31 @@ struct GpuRenderer::Impl {
   vk::Buffer sceneBuffer, materials, spheres, planes;
   // Per tile.
   vk::Buffer pixels;
+  vk::Buffer tsisScratch;  // GpuTsisSlot per region and tile pixel
+  vk::Buffer wisScratch;   // HT_WIS_TOP_NODES doubles per tile pixel
+  // ht*: uploaded at their first render, the scene struct uploaded again.
+  GpuScene scene{};
+  int envOrder = 0;
+  std::vector<Material> sceneMaterials;
+  size_t occluders = 0;
+  bool htGeometry = false, htTables = false;
+  std::vector<vk::Buffer> htBuffers;
+  bool recordHtSamples = false;
+  vk::Buffer htSampleLog;
+
+  void prepareHt(const RenderSettings& s);
 
   explicit Impl(const GpuOptions& o)
       : ctx(vk::ContextOptions{o.deviceIndex, o.validation, !o.forceFp32, o.validationLog}) {
     info = toInfo(ctx.info);
+    recordHtSamples = o.recordHtSamples;
     maxTileSide = std::max<uint32_t>(kWorkgroupSize, uint32_t(std::max(o.maxTileSide, 1)) / kWorkgroupSize * kWorkgroupSize);
     shaderName = ctx.float64 ? "render.fp64.spv" : "render.fp32.spv";
     const std::string dir = o.shaderDir.empty() ? shaderDirNextToExecutable() : o.shaderDir;
-    pipeline.emplace(ctx, (std::filesystem::path(dir) / shaderName).string(), kBindings, uint32_t(sizeof(GpuPush)),
-                     std::array<uint32_t, 3>{kWorkgroupSize, kWorkgroupSize, 1});
+    shaderPath = (std::filesystem::path(dir) / shaderName).string();
+    // Checks the shader against the host now; specialized to the cheapest
+    // method, as compiling every method's branch takes long on lavapipe.
+    usePipeline(HT_METHOD_UNIFORM);
     if (ctx.info.timestampValidBits > 0) {
       VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
       q.queryType = VK_QUERY_TYPE_TIMESTAMP;
@@ -152,6 +185,22 @@ struct GpuRenderer::Impl {
       timestampMask = ctx.info.timestampValidBits >= 64 ? ~uint64_t(0)
                                                         : (uint64_t(1) << ctx.info.timestampValidBits) - 1;
     }
+  }
+  // A pipeline specialized for `method` (HT_SPEC_METHOD), with the buffers
+  // bound so far bound again.
+  void usePipeline(uint32_t method) {
+    if (pipelineMethod == method) return;
+    const uint32_t specialization[] = {method};
+    pipeline.emplace(ctx, shaderPath, kBindings, uint32_t(sizeof(GpuPush)),
+                     std::array<uint32_t, 3>{kWorkgroupSize, kWorkgroupSize, 1}, specialization);
+    pipelineMethod = method;
+    if (hasScene) {
+      pipeline->setBuffer(HT_BINDING_SCENE, sceneBuffer);
+      pipeline->setBuffer(HT_BINDING_MATERIALS, materials);
+      pipeline->setBuffer(HT_BINDING_SPHERES, spheres);
+      pipeline->setBuffer(HT_BINDING_PLANES, planes);
+    }
+    if (pixels.size() > 0) pipeline->setBuffer(HT_BINDING_PIXELS, pixels);
   }
   ~Impl() {
     if (ctx.device) vkDeviceWaitIdle(ctx.device);
@@ -207,6 +256,15 @@ void GpuRenderer::setScene(const Scene& scene) {
   gs.sphereCount = uint32_t(scene.spheres.size());
   gs.planeCount = uint32_t(scene.planes.size());
   gs.materialCount = uint32_t(scene.materials.size());
+  // tsis: its summed-area table, in doubles (so only where the shader has them).
+  if (ctx.float64 && env.hasLight()) {
+    const std::shared_ptr<const TsisTable> sat = tsisTable(env);
+    vk::Buffer b(ctx, sat->sat.size() * sizeof(double), vk::MemoryUse::DeviceLocal);
+    b.upload(sat->sat.data(), sat->sat.size() * sizeof(double));
+    gs.tsisSat = b.address();
+    gs.tsisLevel = uint32_t(sat->level);
+    m.chunks.push_back(std::move(b));
+  }
 
   std::vector<GpuMaterial> materials;
   for (const Material& mat : scene.materials)
@@ -226,20 +284,75 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.pipeline->setBuffer(HT_BINDING_MATERIALS, m.materials);
   m.pipeline->setBuffer(HT_BINDING_SPHERES, m.spheres);
   m.pipeline->setBuffer(HT_BINDING_PLANES, m.planes);
+  m.scene = gs;
+  m.envOrder = env.order;
+  m.sceneMaterials = scene.materials;
+  m.occluders = scene.spheres.size() + scene.planes.size();
+  m.htGeometry = m.htTables = false;
+  m.htBuffers.clear();
   m.hasScene = true;
+}
+
+// The HEALPix geometry (and the BRDF tables) the ht* methods read, uploaded
+// at their first use so that the baselines never build them.
+void GpuRenderer::Impl::prepareHt(const RenderSettings& s) {
+  const bool table = s.options.brdfBounds == MethodOptions::BrdfBounds::Table;
+  if ((s.method == Method::HtVis || s.method == Method::HtVisBiased) && occluders > HT_MAX_CAPS)
+    throw Error(fmt::format("method {} on the GPU handles at most {} spheres and planes (the scene has {}); "
+                            "use --device cpu", methodName(s.method), HT_MAX_CAPS, occluders));
+  bool changed = false;
+  if (!htGeometry) {
+    const HtGeometry& g = ht::htGeometry(envOrder);
+    uploadChunked(ctx, g.centers.data(), g.centers.size(), sizeof(glm::vec3), uint64_t(1) << HT_HT_VEC3_CHUNK_SHIFT,
+                  htBuffers, scene.htCenters, "HT node centres");
+    uploadChunked(ctx, g.cosSinRadius.data(), g.cosSinRadius.size(), sizeof(glm::vec2),
+                  uint64_t(1) << HT_HT_VEC2_CHUNK_SHIFT, htBuffers, scene.htCosSinRadius, "HT node radii");
+    static_assert(sizeof(scene.htLevelRadius) == sizeof(g.levelRadius));
+    std::copy(g.levelRadius.begin(), g.levelRadius.end(), scene.htLevelRadius);
+    htGeometry = changed = true;
+  }
+  if (table && !htTables) {
+    std::vector<float> all;
+    for (const Material& mat : sceneMaterials) {
+      std::vector<float> t = BrdfTable::get(mat).flattened();
+      if (t.size() != size_t(HT_BRDF_TABLE_FLOATS)) throw Error("internal: BRDF table size differs from the shaders'");
+      all.insert(all.end(), t.begin(), t.end());
+    }
+    vk::Buffer b = uploadArray(ctx, all);
+    scene.htBrdfTables = b.address();
+    htBuffers.push_back(std::move(b));
+    htTables = changed = true;
+  }
+  if (changed) sceneBuffer.upload(&scene, sizeof(scene));
 }
 
 GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
   Impl& m = *impl_;
   if (!m.hasScene) throw Error("internal: GpuRenderer::render before setScene");
   if (!gpuSupportsMethod(s.method))
-    throw Error(fmt::format("method {} is not implemented on the GPU yet (uniform, cosine, env, brdf, mis are); "
-                            "use --device cpu", methodName(s.method)));
+    throw Error(fmt::format("method {} is not implemented on the GPU; use --device cpu", methodName(s.method)));
+  m.usePipeline(uint32_t(s.method));
   const auto start = std::chrono::steady_clock::now();
 
   // Square tiles, a multiple of the workgroup, sized so that one dispatch
   // draws at most kDirectionsPerDispatch directions.
-  const uint64_t perPixel = uint64_t(std::max(s.spp, 1)) * (s.method == Method::Mis ? 2 : 1);
+  const bool wisMethod = s.method == Method::Wis || s.method == Method::WisBiased;
+  if ((s.method == Method::Tsis || wisMethod) && !m.ctx.float64)
+    throw Error(fmt::format("method {} needs shaderFloat64 on the GPU ({} has none, or fp32 was forced); "
+                            "use --device cpu", methodName(s.method), m.info.name));
+  const bool htMethod = s.method == Method::Ht || s.method == Method::HtVis || s.method == Method::HtBiased ||
+                        s.method == Method::HtVisBiased;
+  if (htMethod) m.prepareHt(s);
+  // ris draws M candidates per sample; tsis first partitions the sphere
+  // (about five BRDF evaluations per region); wis evaluates the BRDF at
+  // every node of its exact levels, then four times per level below them.
+  const uint64_t spp = uint64_t(std::max(s.spp, 1));
+  const uint64_t perPixel =
+      s.method == Method::Mis    ? 2 * spp
+      : s.method == Method::Ris  ? spp * uint64_t(std::max(s.options.risCandidates, 1))
+      : s.method == Method::Tsis ? spp + 5 * HT_TSIS_REGIONS
+      : wisMethod                ? 4 * spp * (HT_WIS_MAX_ORDER - HT_WIS_EXACT_LEVELS) + HT_WIS_TOP_NODES
+                                 : spp;
   uint32_t side = m.maxTileSide;
   while (side > kWorkgroupSize && uint64_t(side) * side * perPixel > kDirectionsPerDispatch)
     side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
@@ -250,6 +363,23 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
     m.pixels = vk::Buffer(m.ctx, pixelBytes, vk::MemoryUse::Readback);
     m.pipeline->setBuffer(HT_BINDING_PIXELS, m.pixels);
   }
+  const VkDeviceSize tsisBytes = VkDeviceSize(tileW) * tileH * HT_TSIS_REGIONS * sizeof(GpuTsisSlot);
+  if (s.method == Method::Tsis && m.tsisScratch.size() < tsisBytes)
+    m.tsisScratch = vk::Buffer(m.ctx, tsisBytes, vk::MemoryUse::DeviceLocal);
+  const VkDeviceSize wisBytes = VkDeviceSize(tileW) * tileH * HT_WIS_TOP_NODES * sizeof(double);
+  if (wisMethod && m.wisScratch.size() < wisBytes)
+    m.wisScratch = vk::Buffer(m.ctx, wisBytes, vk::MemoryUse::DeviceLocal);
+  const VkDeviceSize logBytes = VkDeviceSize(tileW) * tileH * HT_SAMPLE_LOG_SLOTS * sizeof(GpuHtSample);
+  if (htMethod && m.recordHtSamples && m.htSampleLog.size() < logBytes)
+    m.htSampleLog = vk::Buffer(m.ctx, logBytes, vk::MemoryUse::Readback);
+  // HtOptions as estimateDirect (host/integrator.cpp) sets them.
+  HtOptions ho;
+  ho.visibility = s.method == Method::HtVis || s.method == Method::HtVisBiased;
+  ho.biased = s.method == Method::HtBiased || s.method == Method::HtVisBiased;
+  ho.brdfTable = s.options.brdfBounds == MethodOptions::BrdfBounds::Table;
+  ho.sphereSequence = s.options.htSphereSequence;
+  if (ho.budgetRefinements > HT_MAX_BUDGET_REFINEMENTS || ho.maxLevel > 255)
+    throw Error("internal: HtOptions beyond the shaders' limits");
 
   GpuRenderResult out;
   RenderResult& r = out.result;
@@ -274,6 +404,22 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
       push.method = uint32_t(s.method);
       push.spp = uint32_t(std::max(s.spp, 1));
       push.seed = s.seed;
+      if (htMethod) {
+        push.htFlags = (ho.visibility ? HT_FLAG_VISIBILITY : 0u) | (ho.biased ? HT_FLAG_BIASED : 0u) |
+                       (ho.brdfTable ? HT_FLAG_BRDF_TABLE : 0u) | (ho.sphereSequence ? HT_FLAG_SPHERE_SEQUENCE : 0u) |
+                       uint32_t(ho.budgetRefinements) << 8 | uint32_t(ho.maxLevel) << 16;
+        push.htBrdfFloor = ho.brdfFloor;
+        push.htVisibilityFloor = ho.visibilityFloor;
+        push.htBiasedSmoothness = ho.biasedSmoothness;
+        if (m.recordHtSamples) {
+          const VkDeviceAddress a = m.htSampleLog.address();
+          push.htSampleLog = glm::uvec2(uint32_t(a), uint32_t(a >> 32));
+        }
+      }
+      push.risCandidates = uint32_t(std::max(s.options.risCandidates, 1));
+      push.tsisScratch = s.method == Method::Tsis ? m.tsisScratch.address() : 0;
+      push.wisScratch = wisMethod ? m.wisScratch.address() : 0;
+      push.wisOrder = uint32_t(std::max(s.options.wisOrder, 0));
       m.ctx.submitAndWait([&](VkCommandBuffer cmd) {
         // Uploads (host writes, staging copies) before the shader reads.
         VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
@@ -312,6 +458,22 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
           r.counters.shadowRays += p.shadowRays;
           r.counters.htNodes += p.htNodes;
         }
+      if (htMethod && m.recordHtSamples) {
+        if (out.htSamples.empty()) out.htSamples.resize(size_t(s.width) * s.height);
+        m.htSampleLog.invalidate();
+        const auto* log = static_cast<const GpuHtSample*>(m.htSampleLog.mapped());
+        for (uint32_t y = 0; y < push.tileHeight; ++y)
+          for (uint32_t x = 0; x < push.tileWidth; ++x) {
+            const size_t i = size_t(y) * push.tileWidth + x;
+            const uint32_t n = std::min<uint32_t>(px[i].directions, HT_SAMPLE_LOG_SLOTS);
+            auto& samples = out.htSamples[size_t(push.tileY + y) * s.width + push.tileX + x];
+            for (uint32_t k = 0; k < n; ++k) {
+              const GpuHtSample& g = log[i * HT_SAMPLE_LOG_SLOTS + k];
+              samples.push_back({g.dir, g.h, uint64_t(g.candidate.x) | uint64_t(g.candidate.y) << 32, int(g.level),
+                                 g.weight});
+            }
+          }
+      }
       ++out.tiles;
       if (s.progress) {
         const int percent = int(100.0 * out.tiles / tileCount);

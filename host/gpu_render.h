@@ -1,7 +1,9 @@
-// The Vulkan compute path: renders the baseline methods (uniform, cosine,
-// env, brdf, mis) exactly as renderCpu does, with the same random numbers,
-// on any Vulkan 1.2 device (lavapipe included). The scene is uploaded once;
-// images are rendered in tiles so that no dispatch runs for long.
+// The Vulkan compute path: renders every method but the brute-force oracle
+// (the baselines, the HT family, wis, tsis, ris; wis and tsis on devices
+// with shaderFloat64) as renderCpu does, with the same random numbers, on
+// any Vulkan 1.2 device with shaderInt64 (lavapipe included). The scene is
+// uploaded once; images are rendered in tiles so that no dispatch runs for
+// long.
 #pragma once
 
 #include <cstdint>
@@ -22,6 +24,7 @@ struct GpuOptions {
   bool forceFp32 = false;   // use the single-precision shader even where fp64 exists
   std::string shaderDir;    // empty: shaders/ next to the executable
   int maxTileSide = 512;    // tiles are at most this many pixels wide and high (a multiple of 8)
+  bool recordHtSamples = false;  // ht*: keep the first 64 accepted samples of every pixel (tests)
 };
 
 // One Vulkan device, as `htrender info` lists it.
@@ -51,10 +54,21 @@ bool gpuSupportsMethod(Method method);
 // <directory of the running executable>/shaders.
 std::string shaderDirNextToExecutable();
 
+// One accepted sample of an ht* method, as HtSample (host/ht.h) records it.
+struct HtSampleRecord {
+  glm::vec3 dir;  // world space
+  float h;
+  uint64_t candidate;
+  int level;
+  float weight;
+};
+
 struct GpuRenderResult {
   RenderResult result;      // image, wall seconds, counters, as renderCpu
   double gpuSeconds = -1.0; // sum of the dispatches' timestamps; < 0 without timestamps
   int tiles = 0;
+  // With GpuOptions::recordHtSamples: per pixel (y * width + x), its first accepted samples in order.
+  std::vector<std::vector<HtSampleRecord>> htSamples;
 };
 
 class GpuRenderer {

@@ -38,6 +38,41 @@
 #define HT_METHOD_HT_VIS 6
 #define HT_METHOD_HT_BIASED 7
 #define HT_METHOD_HT_VIS_BIASED 8
+#define HT_METHOD_ORACLE 9
+#define HT_METHOD_WIS 10
+#define HT_METHOD_WIS_BIASED 11
+#define HT_METHOD_TSIS 12
+#define HT_METHOD_RIS 13
+#define HT_METHOD_ANY 0xFFFFFFFFu  // render.comp.glsl's specialization constant: use GpuPush::method
+#define HT_SPEC_METHOD 0           // its constant_id
+
+// tsis: regions of the per-point partition (TsisPoint::kDefaultRegions) and
+// the deepest level of its summed-area table (TsisTable::kMaxLevel).
+#define HT_TSIS_REGIONS 32
+#define HT_TSIS_MAX_LEVEL 9
+// wis*: levels summed exactly (WisPoint::kExactLevels), their node count
+// (levelOffset(kExactLevels + 1)) and the deepest order (WisPoint::kMaxOrder).
+#define HT_WIS_EXACT_LEVELS 3
+#define HT_WIS_TOP_NODES 1020
+#define HT_WIS_MAX_ORDER 9
+
+// ht*: GpuPush::htFlags bits. At most HT_MAX_CAPS occluders (caps) per
+// shading point with visibility, HT_MAX_BUDGET_REFINEMENTS budget splits.
+#define HT_FLAG_VISIBILITY 1u
+#define HT_FLAG_BIASED 2u
+#define HT_FLAG_BRDF_TABLE 4u
+#define HT_FLAG_SPHERE_SEQUENCE 8u
+#define HT_MAX_CAPS 16
+#define HT_MAX_BUDGET_REFINEMENTS 24
+#define HT_SAMPLE_LOG_SLOTS 64
+// ht* with table bounds: BrdfTable's sizes (host/brdf_table.h); per material
+// HT_BRDF_TABLE_FLOATS floats: the averages, then the max pyramid's levels.
+#define HT_BRDF_TABLE_THETA_O 16
+#define HT_BRDF_TABLE_THETA 64
+#define HT_BRDF_TABLE_PHI 128
+#define HT_BRDF_TABLE_LEVELS 7
+#define HT_BRDF_TABLE_CELLS (HT_BRDF_TABLE_THETA_O * HT_BRDF_TABLE_THETA * HT_BRDF_TABLE_PHI)
+#define HT_BRDF_TABLE_FLOATS (2 * HT_BRDF_TABLE_CELLS + 16 * (2048 + 512 + 128 + 32 + 8 + 2))
 
 #define HT_MATERIAL_LAMBERT 0
 #define HT_MATERIAL_PHONG 1
@@ -60,6 +95,17 @@ using uvec2 = glm::uvec2;
 layout(buffer_reference, scalar, buffer_reference_align = 4) readonly buffer Vec3Chunk { vec3 v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) readonly buffer Vec2Chunk { vec2 v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) readonly buffer FloatChunk { float v[]; };
+#if HT_FP64
+layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer DoubleChunk { double v[]; };
+#else
+layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer DoubleChunk { uvec2 v[]; };
+#endif
+layout(buffer_reference) buffer TsisScratch;
+#if HT_FP64
+layout(buffer_reference, scalar, buffer_reference_align = 8) buffer WisScratch { double v[]; };
+#else
+layout(buffer_reference, scalar, buffer_reference_align = 8) buffer WisScratch { uvec2 v[]; };
+#endif
 #define HT_CHUNK_REF(type) type
 #endif
 
@@ -91,6 +137,14 @@ struct GpuScene {
   uint sphereCount;
   uint planeCount;
   uint materialCount;
+  // tsis (HT_FP64 shader only): per-face summed-area tables of the
+  // luminance at level tsisLevel, TsisTable::sat's layout; one buffer
+  // (at most 12 (2^HT_TSIS_MAX_LEVEL + 1)^2 doubles, 25 MiB); 0 if absent.
+  HT_CHUNK_REF(DoubleChunk) tsisSat;
+  uint tsisLevel;
+  uint tsisReserved;
+  // ht* with table bounds: HT_BRDF_TABLE_FLOATS per material, in material order; 0 if absent.
+  HT_CHUNK_REF(FloatChunk) htBrdfTables;
 };
 
 struct GpuMaterial {
@@ -124,7 +178,36 @@ struct GpuPixel {
   uint reserved;
 };
 
+// Test only: one accepted HT sample (GpuPush::htSampleLog).
+struct GpuHtSample {
+  vec3 dir;         // world space
+  float h;          // acceptance value
+  uvec2 candidate;  // accepted VDC index (low, high words)
+  uint level;       // level of the cell it was jittered in
+  float weight;     // 1 / (s h)
+};
+
 // Per dispatch (at most 128 bytes on lavapipe).
+// tsis: one region of a shading point's partition (TsisRegion); its doubles
+// are uvec2 in the HT_FP64 = 0 shader, which has no tsis.
+#if defined(__cplusplus) || HT_FP64
+#define HT_DOUBLE double
+#else
+#define HT_DOUBLE uvec2
+#endif
+struct GpuTsisSlot {
+  uint face, x0, y0, x1, y1;  // pixel rectangle [x0, x1) x [y0, y1) of a face at the table's level
+  uint pad;
+  HT_DOUBLE energy;    // the table's sum over it
+  HT_DOUBLE brdf;      // BRDF weight
+  HT_DOUBLE priority;  // while splitting; then the probability of the region
+  HT_DOUBLE cdf;       // cumulative region weights
+};
+#undef HT_DOUBLE
+#ifndef __cplusplus
+layout(buffer_reference, scalar, buffer_reference_align = 8) buffer TsisScratch { GpuTsisSlot slots[]; };
+#endif
+
 struct GpuPush {
   uint width;   // whole image
   uint height;
@@ -135,11 +218,28 @@ struct GpuPush {
   uint method;  // HT_METHOD_*
   uint spp;
   uint seed;
-  uint reserved[7];  // room for the HT stage's per-dispatch settings
+  // ht*: HtOptions (host/ht.h) of this render.
+  uint htFlags;             // HT_FLAG_* | budgetRefinements << 8 | maxLevel << 16
+  float htBrdfFloor;
+  float htVisibilityFloor;
+  float htBiasedSmoothness;
+  uvec2 htSampleLog;        // test only: address of GpuHtSample[HT_SAMPLE_LOG_SLOTS per tile pixel], 0: off
+  uint risCandidates;  // ris: candidates M per resampled sample
+  // tsis: GpuTsisSlot[HT_TSIS_REGIONS per tile pixel], the partition of each
+  // pixel's shading point (lavapipe turns private arrays indexed at run
+  // time into long compare chains; memory it indexes directly).
+  HT_CHUNK_REF(TsisScratch) tsisScratch;
+  // wis*: HT_WIS_TOP_NODES doubles per tile pixel (WisPoint's exact levels).
+  HT_CHUNK_REF(WisScratch) wisScratch;
+  uint wisOrder;  // wis*: requested order of the sampled product
+  uint wisReserved;
 };
 
 #ifdef __cplusplus
-static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 96);
+static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 120);
+static_assert(offsetof(GpuScene, htBrdfTables) - offsetof(GpuScene, camPosition) == 112);
+static_assert(offsetof(GpuScene, tsisSat) - offsetof(GpuScene, camPosition) == 96 &&
+              offsetof(GpuScene, tsisLevel) - offsetof(GpuScene, camPosition) == 104);
 static_assert(offsetof(GpuScene, treeAvg) == 8 * HT_MAX_CHUNKS);
 static_assert(offsetof(GpuScene, htLevelRadius) == 5 * 8 * HT_MAX_CHUNKS);
 static_assert(offsetof(GpuScene, camPosition) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32);
@@ -150,7 +250,12 @@ static_assert(sizeof(GpuMaterial) == 40 && offsetof(GpuMaterial, diffuse) == 4 &
 static_assert(sizeof(GpuSphere) == 20 && offsetof(GpuSphere, radius) == 12 && offsetof(GpuSphere, material) == 16);
 static_assert(sizeof(GpuPlane) == 28 && offsetof(GpuPlane, normal) == 12 && offsetof(GpuPlane, material) == 24);
 static_assert(sizeof(GpuPixel) == 32 && offsetof(GpuPixel, shaded) == 12 && offsetof(GpuPixel, htNodes) == 24);
-static_assert(sizeof(GpuPush) == 64 && offsetof(GpuPush, seed) == 32);
+static_assert(sizeof(GpuPush) == 88 && offsetof(GpuPush, seed) == 32 && offsetof(GpuPush, risCandidates) == 60 &&
+              offsetof(GpuPush, tsisScratch) == 64 && offsetof(GpuPush, wisScratch) == 72 &&
+              offsetof(GpuPush, wisOrder) == 80);
+static_assert(sizeof(GpuTsisSlot) == 56 && offsetof(GpuTsisSlot, energy) == 24 && offsetof(GpuTsisSlot, cdf) == 48);
+static_assert(offsetof(GpuPush, htFlags) == 36 && offsetof(GpuPush, htSampleLog) == 52);
+static_assert(sizeof(GpuHtSample) == 32 && offsetof(GpuHtSample, candidate) == 16 && offsetof(GpuHtSample, level) == 24);
 static_assert(sizeof(vec3) == 12 && alignof(vec3) == 4 && sizeof(vec2) == 8);
 
 inline constexpr uint32_t kWorkgroupSize = HT_WORKGROUP_SIZE;

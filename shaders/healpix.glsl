@@ -186,12 +186,12 @@ void faceXYToZPhiSin(uint face, hreal x, hreal y, out hreal z, out hreal phi, ou
 }
 
 // healpix::pixToVec in the HEALPix frame, cos/sin of phi in float.
-hvec3 pixToVec(uint order, uint pix, float dx, float dy) {
+hvec3 pixToVecAt(uint order, uint pix, hreal dx, hreal dy) {
   uint ix, iy, face;
   pixToXYF(order, pix, ix, iy, face);
   precise hreal fn = hreal(1u << order);
-  precise hreal x = (hreal(ix) + hreal(dx)) / fn;
-  precise hreal y = (hreal(iy) + hreal(dy)) / fn;
+  precise hreal x = (hreal(ix) + dx) / fn;
+  precise hreal y = (hreal(iy) + dy) / fn;
   hreal z, phi, sth;
   faceXYToZPhiSin(face, x, y, z, phi, sth);
   precise hreal st = sth < -2.0 ? sqrt((1.0 - z) * (1.0 + z)) : sth;
@@ -199,5 +199,6 @@ hvec3 pixToVec(uint order, uint pix, float dx, float dy) {
   precise hvec3 v = hvec3(st * hreal(cos(fphi)), st * hreal(sin(fphi)), z);
   return v;
 }
+hvec3 pixToVec(uint order, uint pix, float dx, float dy) { return pixToVecAt(order, pix, hreal(dx), hreal(dy)); }
 
 #endif

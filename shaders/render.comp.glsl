@@ -1,10 +1,13 @@
-// The baseline methods (uniform, cosine, env, brdf, mis) of the CPU
-// reference renderer (host/render.cpp, host/integrator.cpp), one invocation
-// per pixel of the current tile, with the same random numbers.
+// The methods of the CPU reference renderer (host/render.cpp,
+// host/integrator.cpp): the baselines here, the HT family (ht.glsl) and
+// wis, tsis, ris (competitors.glsl); one invocation per pixel of the current
+// tile, with the same random numbers.
 #version 460
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_scalar_block_layout : require
 #extension GL_EXT_buffer_reference : require
+#extension GL_EXT_buffer_reference_uvec2 : require
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 
 #include "common.h"
 #include "bindings.glsl"
@@ -13,6 +16,11 @@
 #include "scene.glsl"
 
 layout(local_size_x = HT_WORKGROUP_SIZE, local_size_y = HT_WORKGROUP_SIZE) in;
+
+// The method as a specialization constant (HT_METHOD_*; HT_METHOD_ANY: the
+// push constant's): lavapipe compiles every branch of the shader, so each
+// method gets a pipeline that holds its own code only.
+layout(constant_id = HT_SPEC_METHOD) const uint kSpecializedMethod = HT_METHOD_ANY;
 
 struct Shading {
   Frame frame;
@@ -59,6 +67,9 @@ precise vec3 bsdfDirection(Shading sh, inout uint rng, out float pdf) {
 #define accvec3 vec3
 #endif
 
+#include "competitors.glsl"
+#include "ht.glsl"
+
 // estimateDirect for the baseline methods; counts directions drawn.
 vec3 estimateDirect(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, uint method, uint spp,
                     inout uint rng, inout uint directions) {
@@ -67,6 +78,12 @@ vec3 estimateDirect(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, u
   sh.woLocal = toLocal(sh.frame, wo);
   sh.origin = offsetRayOrigin(position, normal);
   sh.material = material;
+  if (method == HT_METHOD_RIS) return estimateRis(sh, spp, pc.risCandidates, rng, directions);
+  if (method == HT_METHOD_TSIS) return estimateTsis(sh, normal, wo, spp, rng, directions);
+  if (method == HT_METHOD_WIS || method == HT_METHOD_WIS_BIASED)
+    return estimateWis(sh, normal, wo, spp, method == HT_METHOD_WIS_BIASED, rng, directions);
+  if (method >= HT_METHOD_HT && method <= HT_METHOD_HT_VIS_BIASED)
+    return estimateHt(sh, position, normal, wo, spp, rng, directions);
   precise accvec3 sum = accvec3(0.0);
   for (uint i = 0u; i < spp; ++i) {
     precise vec3 est = vec3(0.0);
@@ -136,11 +153,14 @@ void main() {
   } else {
     uint rng = rngInit(pc.seed, y * pc.width + x);  // pixelStream(x, y, width)
     uint directions = 0u;
-    result.radiance = estimateDirect(hit.position, hit.normal, -ray.dir, materials[hit.material], pc.method,
+    gHtMaterial = hit.material;
+    result.radiance = estimateDirect(hit.position, hit.normal, -ray.dir, materials[hit.material],
+                                     kSpecializedMethod == HT_METHOD_ANY ? pc.method : kSpecializedMethod,
                                      pc.spp, rng, directions);
     result.shaded = 1u;
     result.directions = directions;
     result.shadowRays = gShadowRays;
+    result.htNodes = gHtNodes;
   }
   pixels[local.y * pc.tileWidth + local.x] = result;
 }

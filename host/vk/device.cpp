@@ -153,6 +153,7 @@ PhysicalDeviceInfo describe(VkPhysicalDevice pd, uint32_t index) {
   VkPhysicalDeviceFeatures features;
   vkGetPhysicalDeviceFeatures(pd, &features);
   d.shaderFloat64 = features.shaderFloat64;
+  d.shaderInt64 = features.shaderInt64;
 
   const bool v12 = props.apiVersion >= kApiVersion;
   if (v12) {
@@ -188,6 +189,8 @@ PhysicalDeviceInfo describe(VkPhysicalDevice pd, uint32_t index) {
     d.unusableReason = "no scalarBlockLayout";
   else if (!d.bufferDeviceAddress)
     d.unusableReason = "no bufferDeviceAddress";
+  else if (!d.shaderInt64)
+    d.unusableReason = "no shaderInt64";
   d.usable = d.unusableReason.empty();
   return d;
 }
@@ -293,6 +296,7 @@ Context::Context(const ContextOptions& options)
     VkPhysicalDeviceFeatures2 features{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
     features.pNext = &f12;
     features.features.shaderFloat64 = float64 ? VK_TRUE : VK_FALSE;
+    features.features.shaderInt64 = VK_TRUE;
     VkDeviceCreateInfo deviceInfo{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
     deviceInfo.pNext = &features;
     deviceInfo.queueCreateInfoCount = 1;

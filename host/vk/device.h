@@ -33,9 +33,11 @@ struct PhysicalDeviceInfo {
   std::string apiVersionString;
   bool usable = false;        // meets every requirement below
   std::string unusableReason;
-  // Required: Vulkan 1.2, a compute queue, scalarBlockLayout, bufferDeviceAddress.
+  // Required: Vulkan 1.2, a compute queue, scalarBlockLayout, bufferDeviceAddress,
+  // shaderInt64 (HT candidate indices and deep node indices).
   bool scalarBlockLayout = false;
   bool bufferDeviceAddress = false;
+  bool shaderInt64 = false;
   // Optional: shaderFloat64 (HEALPix lookups in double), timestamps (GPU time).
   bool shaderFloat64 = false;
   uint32_t timestampValidBits = 0;

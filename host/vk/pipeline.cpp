@@ -134,7 +134,8 @@ SpirvInterface reflectSpirv(std::span<const uint32_t> code) {
 }
 
 ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::span<const BindingLayout> bindings,
-                                 uint32_t pushConstantSize, std::array<uint32_t, 3> localSize)
+                                 uint32_t pushConstantSize, std::array<uint32_t, 3> localSize,
+                                 std::span<const uint32_t> specialization)
     : ctx_(ctx), pushSize_(pushConstantSize) {
   const std::vector<uint32_t> code = loadSpirv(path);
   const SpirvInterface iface = reflectSpirv(code);
@@ -181,6 +182,11 @@ ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::spa
     pipelineInfo.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
     pipelineInfo.stage.module = module_;
     pipelineInfo.stage.pName = "main";
+    std::vector<VkSpecializationMapEntry> entries;
+    for (uint32_t i = 0; i < specialization.size(); ++i) entries.push_back({i, 4 * i, 4});
+    VkSpecializationInfo specInfo{uint32_t(entries.size()), entries.data(), specialization.size_bytes(),
+                                  specialization.data()};
+    if (!specialization.empty()) pipelineInfo.stage.pSpecializationInfo = &specInfo;
     pipelineInfo.layout = layout_;
     check(vkCreateComputePipelines(ctx.device, VK_NULL_HANDLE, 1, &pipelineInfo, nullptr, &pipeline_),
           "vkCreateComputePipelines");

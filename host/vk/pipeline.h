@@ -42,8 +42,10 @@ struct BindingLayout {
 
 class ComputePipeline {
  public:
+  // specialization[i] is the value of the shader's constant_id i.
   ComputePipeline(Context& ctx, const std::string& spirvPath, std::span<const BindingLayout> bindings,
-                  uint32_t pushConstantSize, std::array<uint32_t, 3> localSize);
+                  uint32_t pushConstantSize, std::array<uint32_t, 3> localSize,
+                  std::span<const uint32_t> specialization = {});
   ~ComputePipeline();
   ComputePipeline(const ComputePipeline&) = delete;
   ComputePipeline& operator=(const ComputePipeline&) = delete;

@@ -1,0 +1,514 @@
+// Hierarchical thresholding (host/ht.h, host/ht.cpp): the methods ht,
+// ht-vis, ht-biased and ht-vis-biased, accepting the same candidates as the
+// CPU for the same pixel and seed, in the same order, with the same jitter.
+//
+// The CPU's recursion becomes a stackless walk (DESIGN.md section 10): the
+// state is (level, node, lowest candidate r); going down adds a digit of the
+// node's permutation, the next sibling recomputes the parent's permutation
+// from the stateless hash, going up takes r mod stride. The one value per
+// level the hash cannot give back is the smallest bound on the path
+// (leafValue and the biased stop clamp to it), kept for data levels only.
+//
+// Decisions compare the same doubles as the CPU (HT_FP64). They can differ
+// where a bound goes through pow, cos, asin or acos (an ulp or two off
+// libm's) and lands exactly on the acceptance threshold. HT_FP64 = 0 keeps
+// thresholds in float: the same method, no longer the CPU's samples.
+#ifndef HT_HT_GLSL
+#define HT_HT_GLSL
+
+#include "bindings.glsl"
+#include "bsdf.glsl"
+#include "environment.glsl"
+#include "scene.glsl"
+
+#define HT_MAX_ORDER 13  // healpix::kMaxOrder
+#define HT_MAX_FRONTIER (12 + 3 * HT_MAX_BUDGET_REFINEMENTS)
+
+// The 24 permutations of {0, 1, 2, 3} in lexicographic order, digit j in bits 2j..2j+1.
+const uint kHtPermutations[24] = uint[24](0xE4u, 0xB4u, 0xD8u, 0x78u, 0x9Cu, 0x6Cu, 0xE1u, 0xB1u, 0xC9u, 0x39u,
+                                          0x8Du, 0x2Du, 0xD2u, 0x72u, 0xC6u, 0x36u, 0x4Eu, 0x1Eu, 0x93u, 0x63u,
+                                          0x87u, 0x27u, 0x4Bu, 0x1Bu);
+
+// Float constants by their bits: the C++ literals round once, GLSL's may round twice.
+#define kHtLumR uintBitsToFloat(0x3E59B3D0u)  // 0.2126f
+#define kHtLumG uintBitsToFloat(0x3F371759u)  // 0.7152f
+#define kHtLumB uintBitsToFloat(0x3D93DD98u)  // 0.0722f
+#define kHtCapMargin uintBitsToFloat(0x3A83126Fu)     // 1e-3f
+#define kHtPlaneCapAngle uintBitsToFloat(0x3FC8EF16u) // 0.5f * kPi - 1e-3f
+#define kHtTangentEpsilon uintBitsToFloat(0x358637BDu) // 1e-6f
+#if HT_FP64
+const double kHtFourPi = 12.566370614359172953850573533118lf;
+#else
+const float kHtFourPi = 12.566370614359172953850573533118;
+#endif
+
+layout(buffer_reference, scalar, buffer_reference_align = 4) writeonly buffer HtSampleLog { GpuHtSample s[]; };
+
+float htTreeMax(uint i) { return scene.treeMax[i >> HT_TREE_CHUNK_SHIFT].v[i & ((1u << HT_TREE_CHUNK_SHIFT) - 1u)]; }
+vec3 htCenter(uint i) {
+  return scene.htCenters[i >> HT_HT_VEC3_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC3_CHUNK_SHIFT) - 1u)];
+}
+vec2 htCosSinRadius(uint i) {
+  return scene.htCosSinRadius[i >> HT_HT_VEC2_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC2_CHUNK_SHIFT) - 1u)];
+}
+
+precise float htLuminance(vec3 c) { return kHtLumR * c.r + kHtLumG * c.g + kHtLumB * c.b; }
+
+// Everything HT needs at one shading point (HtPoint), all in the HEALPix frame.
+struct HtPoint {
+  GpuMaterial material;
+  Frame frame;
+  vec3 woLocal, n, wo, mirror;
+  float brdfG1;
+  uint flags;
+  uint order;
+  uint maxLevel;
+  uint capCount;
+  hreal area;  // measure one candidate sequence covers
+  hreal s;     // samples per unit of h
+  hreal u;     // the pixel's offset
+  // Table bounds.
+  uint tableOffset;
+  uint tableBin;  // outgoing elevation bin
+  vec3 tableX, tableY;
+};
+HtPoint ht;
+vec3 gHtCapAxis[HT_MAX_CAPS];
+float gHtCapAngle[HT_MAX_CAPS];
+float gHtCapCos[HT_MAX_CAPS];
+uint gHtNodes = 0u;
+uint gHtSamples = 0u;
+uint gHtMaterial = 0u;  // index of the shading point's material (table bounds)
+
+#include "ht_table.glsl"
+
+// cos(max(0, angle(a, b) - radius)) and cos(min(pi, angle(a, b) + radius)).
+precise float htCosClosest(vec3 a, vec3 b, float cosR, float sinR) {
+  precise float c = clamp(dot3(a, b), -1.0, 1.0);
+  if (c >= cosR) return 1.0;
+  precise float s = sqrt(1.0 - c * c);
+  return c * cosR + s * sinR;
+}
+precise float htCosFarthest(vec3 a, vec3 b, float cosR, float sinR) {
+  precise float c = clamp(dot3(a, b), -1.0, 1.0);
+  if (c <= -cosR) return -1.0;
+  precise float s = sqrt(1.0 - c * c);
+  return c * cosR - s * sinR;
+}
+
+precise hreal htPixelSolidAngle(uint level) { return kHtFourPi / hreal(12u << (2u * level)); }
+precise hreal htThreshold(float h) { return ht.s * hreal(h) * ht.area; }
+uint64_t htStride(uint level) {
+  return uint64_t((ht.flags & HT_FLAG_SPHERE_SEQUENCE) != 0u ? 12u : 1u) << (2u * level);
+}
+
+uint htPermutation(uint seed, uint level, uint64_t node) {
+  uint h = pcgHash(seed ^ pcgHash(level ^ pcgHash(uint(node) ^ pcgHash(uint(node >> 32)))));
+  return kHtPermutations[h % 24u];
+}
+uint htDigit(uint permutation, uint j) { return (permutation >> (2u * j)) & 3u; }
+
+// HtPoint::faceDigit for all faces: 4 bits per face.
+uint64_t htFaceDigits(uint seed) {
+  uint64_t perm = 0xBA9876543210ul;
+  if ((ht.flags & HT_FLAG_SPHERE_SEQUENCE) == 0u) return 0ul;
+  uint h = pcgHash(seed ^ 0x9e3779b9u);
+  for (uint i = 11u; i > 0u; --i) {
+    h = pcgHash(h);
+    uint k = h % (i + 1u);
+    uint64_t a = (perm >> (4u * i)) & 15ul, b = (perm >> (4u * k)) & 15ul;
+    perm &= ~((15ul << (4u * i)) | (15ul << (4u * k)));
+    perm |= (b << (4u * i)) | (a << (4u * k));
+  }
+  return perm;
+}
+
+precise float htBrdfValue(vec3 dirHp) {
+  if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u)
+    return htTableAverage(vec3(dot3(dirHp, ht.tableX), dot3(dirHp, ht.tableY), dot3(dirHp, ht.n)));
+  return htLuminance(evalBsdf(ht.material, ht.woLocal, toLocal(ht.frame, dirHp)));
+}
+
+// HtPoint::brdfBound: each lobe at the smallest angle the node's cone allows.
+precise float htBrdfBound(uint i) {
+  vec3 axis = htCenter(i);
+  vec2 csr = htCosSinRadius(i);
+  float cr = csr.x, sr = csr.y;
+  if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u)
+    return htTableBound(vec3(dot3(axis, ht.tableX), dot3(axis, ht.tableY), dot3(axis, ht.n)), cr, sr);
+  float cosMax = htCosClosest(axis, ht.n, cr, sr);
+  if (cosMax <= 0.0 || ht.woLocal.z <= 0.0) return 0.0;
+  precise float b = htLuminance(ht.material.diffuse) * kInvPi * cosMax;
+  if (ht.material.type == HT_MATERIAL_PHONG) {
+    float c = htCosClosest(axis, ht.mirror, cr, sr);
+    if (c > 0.0) {
+      precise float lobe = htLuminance(ht.material.specular) * (ht.material.exponent + 2.0) * 0.5 * kInvPi *
+                           pow(c, ht.material.exponent) * cosMax;
+      b = b + lobe;
+    }
+  } else if (ht.material.type == HT_MATERIAL_GGX) {
+    precise float cos2H = 0.5 * (1.0 + htCosClosest(axis, ht.mirror, cr, sr));
+    precise float a2 = ht.material.alpha * ht.material.alpha;
+    precise float d = cos2H * (a2 - 1.0) + 1.0;
+    precise float dMax = a2 / (kPi * d * d);
+    precise float cosHalf = sqrt(max(0.0, 0.5 * (1.0 + htCosFarthest(axis, ht.wo, cr, sr))));
+    precise float m = 1.0 - cosHalf;
+    precise float f0 = htLuminance(ht.material.specular);
+    precise float fresnel = f0 + (1.0 - f0) * m * m * m * m * m;
+    precise float lobe = fresnel * dMax * ht.brdfG1 / (4.0 * ht.woLocal.z);
+    b = b + lobe;
+  }
+  return b;
+}
+
+// 0: the cone is fully blocked, 1: fully free, 2: partly covered.
+uint htVisibilityClass(vec3 axis, uint level) {
+  bool partial = false;
+  float rad = scene.htLevelRadius[level];
+  for (uint k = 0u; k < ht.capCount; ++k) {
+    precise float d = dot3(axis, gHtCapAxis[k]);
+    float angle = gHtCapAngle[k];
+    precise float inner = angle - rad;
+    precise float outer = angle + rad;
+    float cosInside = angle > rad ? cos(inner) : 2.0;
+    float cosOutside = cos(min(kPi, outer));
+    if (d >= cosInside) return 0u;
+    if (d > cosOutside) partial = true;
+  }
+  return partial ? 2u : 1u;
+}
+
+precise float htVisibleFraction(uint leaf) {
+  const vec2 offsets[5] = vec2[5](vec2(0.5, 0.5), vec2(0.25, 0.25), vec2(0.75, 0.25), vec2(0.25, 0.75),
+                                  vec2(0.75, 0.75));
+  int free = 0;
+  for (int o = 0; o < 5; ++o) {
+    vec3 d = vec3(pixToVec(ht.order, leaf, offsets[o].x, offsets[o].y));
+    bool blocked = false;
+    for (uint k = 0u; k < ht.capCount; ++k) blocked = blocked || dot3(d, gHtCapAxis[k]) > gHtCapCos[k];
+    free += blocked ? 0 : 1;
+  }
+  precise float fraction = float(free) / 5.0;
+  return max(pc.htVisibilityFloor, fraction);
+}
+
+
+// A node's factors, each evaluated at one place in the shader (the driver
+// inlines every call): the bound (HtPoint::bound), and the BRDF value
+// (brdfValue at the centre) where asked for.
+struct HtNode {
+  uint index;
+  vec3 centre;
+  float envMax, envAvg;
+  float brdfBound;
+  float brdfValue;
+  uint visibility;  // htVisibilityClass; 1 without visibility
+  float bound;
+};
+HtNode htNode(uint level, uint node, bool withValue) {
+  HtNode n;
+  n.index = levelOffset(level) + node;
+  n.centre = htCenter(n.index);
+  n.envMax = htTreeMax(n.index);
+  n.envAvg = treeAvg(n.index);
+  n.brdfBound = htBrdfBound(n.index);
+  n.brdfValue = withValue ? htBrdfValue(n.centre) : 0.0;
+  n.visibility = (ht.flags & HT_FLAG_VISIBILITY) != 0u ? htVisibilityClass(n.centre, level) : 1u;
+  precise float b = n.envMax * n.brdfBound;
+  n.bound = n.envMax <= 0.0 || (b > 0.0 && n.visibility == 0u) ? 0.0 : b;
+  return n;
+}
+
+void htAddCap(vec3 axis, float angle) {
+  if (ht.capCount >= uint(HT_MAX_CAPS)) return;  // the host refuses such scenes
+  gHtCapAxis[ht.capCount] = axis;
+  gHtCapAngle[ht.capCount] = angle;
+  gHtCapCos[ht.capCount] = cos(angle);
+  ++ht.capCount;
+}
+
+// HtPoint's constructor up to the budget.
+void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
+  ht.material = material;
+  ht.flags = pc.htFlags & 0xFFu;
+  ht.maxLevel = (pc.htFlags >> 16) & 0xFFu;
+  ht.order = scene.envOrder;
+  ht.frame = makeFrame(normalize3(vec3(toHealpixFrame(normal))));
+  ht.n = ht.frame.n;
+  ht.wo = normalize3(vec3(toHealpixFrame(wo)));
+  ht.woLocal = toLocal(ht.frame, ht.wo);
+  ht.mirror = reflectAbout(ht.wo, ht.n);
+  ht.brdfG1 = material.type == HT_MATERIAL_GGX ? ggxG1(ht.woLocal, material.alpha) : 1.0;
+  precise hreal face = kHtFourPi / 12.0;
+  precise hreal sphere = 12.0 * face;
+  ht.area = (ht.flags & HT_FLAG_SPHERE_SEQUENCE) != 0u ? sphere : face;
+  if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u) htTableInit();
+  ht.capCount = 0u;
+  if ((ht.flags & HT_FLAG_VISIBILITY) != 0u) {
+    for (uint k = 0u; k < scene.sphereCount; ++k) {
+      GpuSphere sp = spheres[k];
+      precise vec3 d = sp.center - position;
+      precise float dist = length3(d);
+      if (dist <= 0.0) continue;
+      precise float ratio = sp.radius / dist;
+      precise float angle = asin(min(1.0, ratio)) - kHtCapMargin;
+      precise vec3 unit = d / dist;
+      if (angle > 0.0) htAddCap(normalize3(vec3(toHealpixFrame(unit))), angle);
+    }
+    for (uint k = 0u; k < scene.planeCount; ++k) {
+      GpuPlane p = planes[k];
+      precise vec3 rel = position - p.point;
+      float side = dot3(rel, p.normal);
+      vec3 below = side >= 0.0 ? -p.normal : p.normal;
+      htAddCap(normalize3(vec3(toHealpixFrame(below))), kHtPlaneCapAngle);
+    }
+  }
+}
+
+
+// HtPoint::estimateBudget: C_est from the frontier of the nodes with the
+// largest bound mass, in the CPU's frontier order.
+uint gHtFrontierLevel[HT_MAX_FRONTIER];
+uint gHtFrontierNode[HT_MAX_FRONTIER];
+hreal gHtFrontierMass[HT_MAX_FRONTIER];
+float gHtFrontierEstimate[HT_MAX_FRONTIER];  // HtPoint::nodeEstimate
+
+hreal htEstimateBudget() {
+  uint size = 0u;
+  uint refinements = min((pc.htFlags >> 8) & 0xFFu, uint(HT_MAX_BUDGET_REFINEMENTS));
+  uint pushLevel = 0u, pushFirst = 0u, pushCount = 12u;
+  for (uint k = 0u;; ++k) {
+    for (uint j = 0u; j < pushCount; ++j) {
+      HtNode n = htNode(pushLevel, pushFirst + j, true);
+      precise hreal mass = hreal(n.bound) * htPixelSolidAngle(pushLevel);
+      if (mass > 0.0 && size < uint(HT_MAX_FRONTIER)) {
+        precise float floorBound = pc.htBrdfFloor * n.brdfBound;
+        float vis = n.visibility == 0u ? 0.0 : n.visibility == 1u ? 1.0 : 0.5;
+        precise float estimate = n.envAvg * max(n.brdfValue, floorBound) * vis;
+        gHtFrontierLevel[size] = pushLevel;
+        gHtFrontierNode[size] = pushFirst + j;
+        gHtFrontierMass[size] = mass;
+        gHtFrontierEstimate[size] = estimate;
+        ++size;
+      }
+    }
+    if (k >= refinements || size == 0u) break;
+    uint best = 0u;
+    for (uint i = 1u; i < size; ++i)
+      if (gHtFrontierMass[best] < gHtFrontierMass[i]) best = i;
+    uint level = gHtFrontierLevel[best];
+    uint node = gHtFrontierNode[best];
+    if (level >= ht.order) break;
+    for (uint i = best + 1u; i < size; ++i) {
+      gHtFrontierLevel[i - 1u] = gHtFrontierLevel[i];
+      gHtFrontierNode[i - 1u] = gHtFrontierNode[i];
+      gHtFrontierMass[i - 1u] = gHtFrontierMass[i];
+      gHtFrontierEstimate[i - 1u] = gHtFrontierEstimate[i];
+    }
+    --size;
+    pushLevel = level + 1u;
+    pushFirst = 4u * node;
+    pushCount = 4u;
+  }
+  precise hreal c = 0.0;
+  for (uint i = 0u; i < size; ++i) {
+    precise hreal term = hreal(gHtFrontierEstimate[i]) * htPixelSolidAngle(gHtFrontierLevel[i]);
+    c = c + term;
+  }
+  return c;
+}
+
+// One accepted sample, added to the estimate at once: the CPU sums its
+// samples in the order they were accepted, as here.
+accvec3 gHtSum = accvec3(0.0);
+
+void htAccept(Shading sh, vec3 dir, uint pixel, float h, uint64_t candidate, uint level, bool averaged,
+              vec3 brdfDir) {
+  precise hreal inv = 1.0 / (ht.s * hreal(h));
+  float weight = float(inv);
+  if (pc.htSampleLog != uvec2(0u) && gHtSamples < uint(HT_SAMPLE_LOG_SLOTS)) {
+    uint slot = (gl_GlobalInvocationID.y * pc.tileWidth + gl_GlobalInvocationID.x) * uint(HT_SAMPLE_LOG_SLOTS);
+    HtSampleLog(pc.htSampleLog).s[slot + gHtSamples] =
+        GpuHtSample(dir, h, uvec2(uint(candidate), uint(candidate >> 32)), level, weight);
+  }
+  ++gHtSamples;
+  vec3 radiance = envRadiance(pixel);
+  // Biased samples take the BRDF at the smooth node's centre (HEALPix frame).
+  vec3 woLocal = averaged ? ht.woLocal : sh.woLocal;
+  vec3 wiLocal = averaged ? toLocal(ht.frame, brdfDir) : toLocal(sh.frame, dir);
+  precise vec3 fcos = evalBsdf(sh.material, woLocal, wiLocal);
+  if (fcos == vec3(0.0) || radiance == vec3(0.0)) return;
+  ++gShadowRays;
+  if (occluded(sh.origin, dir)) return;
+  precise vec3 product = fcos * radiance;
+  precise accvec3 term = accvec3(product) * accvec3(weight);
+  precise accvec3 sum = gHtSum + term;
+  gHtSum = sum;
+}
+
+uint htCompressBits(uint64_t v) {
+  v &= 0x5555555555555555ul;
+  v = (v | (v >> 1)) & 0x3333333333333333ul;
+  v = (v | (v >> 2)) & 0x0F0F0F0F0F0F0F0Ful;
+  v = (v | (v >> 4)) & 0x00FF00FF00FF00FFul;
+  v = (v | (v >> 8)) & 0x0000FFFF0000FFFFul;
+  v = (v | (v >> 16)) & 0x00000000FFFFFFFFul;
+  return uint(v);
+}
+
+
+// estimateHt for the ht* methods, after estimateDirect's draw of the pixel
+// seed. One pass of the loop is one call of HtPoint::visit (data levels,
+// biased stop and leafValue included) or of HtPoint::visitVirtual.
+vec3 estimateHt(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout uint rng, inout uint directions) {
+  uint seed = rngNextUint(rng);
+  if (scene.envHasLight == 0u) return vec3(0.0);
+  htInit(position, normal, wo, sh.material);
+  hreal cEst = htEstimateBudget();
+  precise hreal s = hreal(spp) / cEst;
+  ht.s = cEst > 0.0 ? s : 0.0;
+  ht.u = hreal(rngNext(rng));
+  gHtSum = accvec3(0.0);
+  gHtSamples = 0u;
+  if (ht.s <= 0.0) return vec3(0.0);
+
+  const bool biased = (ht.flags & HT_FLAG_BIASED) != 0u;
+  const bool visibility = (ht.flags & HT_FLAG_VISIBILITY) != 0u;
+  const uint64_t faceDigits = htFaceDigits(seed);
+  float pathMin[HT_MAX_ORDER + 1];
+  float leafH = 0.0;
+  uint face = 0u;
+  uint level = 0u;
+  uint64_t node = 0ul;
+  uint64_t r = faceDigits & 15ul;
+  for (;;) {
+    bool descend = false;
+    bool virtualCell = level > ht.order;
+    // Candidates r, r + step, ... below acceptT are accepted in the cell
+    // (cellPix at cellOrder, sub-cell (sx, sy) of a cells x cells grid).
+    bool accept = false, averaged = false;
+    hreal acceptT = 0.0, acceptStep = 0.0, sx = 0.0, sy = 0.0, cells = 1.0;
+    uint cellOrder = level, cellPix = 0u;
+    float sampleH = 0.0;
+    vec3 brdfDir = vec3(0.0);
+    if (!virtualCell) {
+      ++gHtNodes;
+      HtNode n = htNode(level, uint(node), biased || level == ht.order);
+      float pm = level == 0u ? n.bound : min(pathMin[level - 1u], n.bound);
+      pathMin[level] = pm;
+      precise hreal ru = hreal(r) + ht.u;
+      precise hreal t = htThreshold(n.bound);
+      if (!(ru >= t)) {
+        bool stopped = false;
+        if (biased) {
+          // HtPoint::stopEarly: a smooth node holding one acceptable candidate takes it, with the node's average.
+          precise float smoothBound = (1.0 + pc.htBiasedSmoothness) * n.brdfValue;
+          precise float twice = 2.0 * n.envAvg;
+          precise float product = n.envAvg * n.brdfValue;
+          float h = min(pm, product);
+          if (n.brdfValue > 0.0 && !(n.brdfBound > smoothBound) && !(n.envMax > twice) &&
+              (!visibility || n.visibility == 1u) && h > 0.0) {
+            precise hreal th = htThreshold(h);
+            precise hreal step = hreal(htStride(level));
+            precise hreal next = hreal(r) + step + ht.u;
+            stopped = ru >= th || !(next < th);
+            if (stopped && !(ru >= th)) {
+              accept = averaged = true;
+              acceptT = th;
+              acceptStep = step;
+              cellPix = uint(node);
+              sampleH = h;
+              brdfDir = n.centre;
+            }
+          }
+        }
+        if (!stopped && level < ht.order) {
+          descend = true;
+        } else if (!stopped) {
+          // HtPoint::leafValue
+          leafH = 0.0;
+          if (!(n.envAvg <= 0.0 || pm <= 0.0 || n.brdfBound <= 0.0) && n.visibility != 0u) {
+            precise float floorBound = pc.htBrdfFloor * n.brdfBound;
+            precise float h = n.envAvg * max(n.brdfValue, floorBound);
+            if (n.visibility == 2u) h = h * htVisibleFraction(uint(node));
+            leafH = min(h, pm);
+          }
+          virtualCell = leafH > 0.0;
+        }
+      }
+    }
+    if (virtualCell) {
+      precise hreal t = htThreshold(leafH);
+      precise hreal ru = hreal(r) + ht.u;
+      if (!(ru >= t)) {
+        precise hreal step = hreal(htStride(level));
+        precise hreal next = hreal(r) + step + ht.u;
+        if (next < t && level < ht.maxLevel) {
+          descend = true;
+        } else {
+          accept = true;
+          acceptT = t;
+          acceptStep = step;
+          uint k = level - ht.order;
+          uint64_t local = node & ((1ul << (2u * k)) - 1ul);
+          cellOrder = ht.order;
+          cellPix = uint(node >> (2u * k));
+          sx = hreal(htCompressBits(local));
+          sy = hreal(htCompressBits(local >> 1));
+          cells = hreal(1u << k);
+          sampleH = leafH;
+        }
+      }
+    }
+    if (accept) {
+      precise hreal i = hreal(r);
+      for (;;) {
+        precise hreal iu = i + ht.u;
+        if (!(iu < acceptT)) break;
+        float first = rngNext(rng);
+        float second = rngNext(rng);
+        // visitVirtual draws dx then dy; stopEarly's pixToVec(.., next(), next())
+        // is evaluated right to left by g++: dy first.
+        float jx = averaged ? second : first;
+        float jy = averaged ? first : second;
+        precise hreal dx = (sx + hreal(jx)) / cells;
+        precise hreal dy = (sy + hreal(jy)) / cells;
+        hvec3 hp = pixToVecAt(cellOrder, cellPix, dx, dy);
+        uint pixel = averaged ? vecToPix(ht.order, hp) : cellPix;
+        htAccept(sh, fromHealpixFrame(hp), pixel, sampleH, uint64_t(i), level, averaged, brdfDir);
+        i = i + acceptStep;
+      }
+    }
+    if (descend) {
+      r += uint64_t(htDigit(htPermutation(seed, level, node), 0u)) * htStride(level);
+      node *= 4ul;
+      ++level;
+      continue;
+    }
+    // Next sibling, going up as far as needed; after the last face, done.
+    for (;;) {
+      if (level == 0u) {
+        ++face;
+        node = uint64_t(face);
+        r = (faceDigits >> (4u * face)) & 15ul;
+        break;
+      }
+      uint j = uint(node & 3ul);
+      uint64_t stride = htStride(level - 1u);
+      if (j < 3u) {
+        uint perm = htPermutation(seed, level - 1u, node >> 2);
+        r = r % stride + uint64_t(htDigit(perm, j + 1u)) * stride;
+        ++node;
+        break;
+      }
+      r %= stride;
+      node >>= 2;
+      --level;
+    }
+    if (face == 12u) break;
+  }
+  directions += gHtSamples;
+  return vec3(gHtSum);
+}
+
+#endif
