@@ -1,6 +1,7 @@
 #include "environment.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <fmt/format.h>
 
@@ -15,9 +16,11 @@ namespace {
 constexpr double kPiD = 3.14159265358979323846;
 
 void finish(Environment& env) {
+  const auto t0 = std::chrono::steady_clock::now();
   std::vector<float> lum(env.radiance.size());
   for (size_t i = 0; i < lum.size(); ++i) lum[i] = luminance(env.radiance[i]);
   env.tree = buildMaxAvgTree(env.order, lum);
+  env.treeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 void setYaw(Environment& env, float yawDegrees) {
@@ -64,7 +67,7 @@ void equirectUV(const glm::vec3& d, double& u, double& v) {
   v = std::min(std::acos(std::clamp(double(d.y) / len, -1.0, 1.0)) / kPiD, std::nextafter(1.0, 0.0));
 }
 
-EnvironmentStats sanitizeEnvironmentImage(ImageRGB& image, const std::string& name) {
+EnvironmentStats sanitizeEnvironmentImage(ImageRGB& image, const std::string& name, bool repairNonFinite) {
   EnvironmentStats stats;
   uint64_t nonFinite = 0;
   size_t firstNonFinite = 0;
@@ -72,9 +75,10 @@ EnvironmentStats sanitizeEnvironmentImage(ImageRGB& image, const std::string& na
   float lo = INFINITY, hi = -INFINITY;
   for (size_t i = 0; i < image.pixels.size(); ++i) {
     for (int c = 0; c < 3; ++c) {
-      float v = image.pixels[i][c];
+      float& v = image.pixels[i][c];
       if (!std::isfinite(v)) {
         if (nonFinite++ == 0) firstNonFinite = i;
+        if (repairNonFinite) v = 0.0f;
         continue;
       }
       lo = std::min(lo, v);
@@ -82,7 +86,8 @@ EnvironmentStats sanitizeEnvironmentImage(ImageRGB& image, const std::string& na
       sum += std::max(0.0f, v);
     }
   }
-  if (nonFinite > 0)
+  stats.repairedNonFiniteTexels = repairNonFinite ? nonFinite : 0;
+  if (nonFinite > 0 && !repairNonFinite)
     throw Error(fmt::format("{}: {} NaN/Inf texel value(s), first at pixel ({}, {})", name, nonFinite,
                             firstNonFinite % image.width, firstNonFinite / image.width));
   // Lossy EXR compression (DWAB) leaves tiny negatives (down to -4e-3 in the

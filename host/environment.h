@@ -23,8 +23,10 @@ namespace ht {
 
 struct EnvironmentStats {
   uint64_t clampedNegativeTexels = 0;  // tiny negatives (lossy compression) set to 0
+  uint64_t repairedNonFiniteTexels = 0;  // NaN/Inf values set to 0 (only when asked to repair)
   float minTexel = 0.0f;
   float maxTexel = 0.0f;
+  double loadSeconds = 0.0;  // reading and checking the file
 };
 
 struct Environment {
@@ -33,6 +35,7 @@ struct Environment {
   float cosYaw = 1.0f, sinYaw = 0.0f;
   std::vector<glm::vec3> radiance;  // per nested pixel, scale applied
   MaxAvgTree tree;                  // luminance of `radiance`
+  double treeSeconds = 0.0;         // time spent building `tree`
 
   int nside() const { return 1 << order; }
   uint64_t pixelOf(const glm::vec3& worldDir) const;
@@ -54,10 +57,11 @@ glm::vec3 equirectDirection(double u, double v);
 // (u, v) in [0,1)^2 of a world direction under the same convention.
 void equirectUV(const glm::vec3& dir, double& u, double& v);
 
-// Checks texels: refuses NaN/Inf and negatives below -negativeTolerance
-// (throws ht::Error naming the count and the first offender); clamps the
-// remaining tiny negatives to 0.
-EnvironmentStats sanitizeEnvironmentImage(ImageRGB& image, const std::string& name);
+// Checks texels: refuses NaN/Inf (or, with repairNonFinite, sets them to 0
+// and counts them) and negatives below -negativeTolerance (throws ht::Error
+// naming the count and the first offender); clamps the remaining tiny
+// negatives to 0.
+EnvironmentStats sanitizeEnvironmentImage(ImageRGB& image, const std::string& name, bool repairNonFinite = false);
 
 // Resamples an equirectangular map into HEALPix at 2^order with
 // supersample^2 area-uniform points per pixel.

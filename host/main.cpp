@@ -38,6 +38,7 @@ struct RenderOptions {
   std::string brdfBounds = "analytic";
   int oracleOrder = 5;
   int risCandidates = 32;
+  bool repairNonFinite = false;
   int wisOrder = 5;
   std::string htSequence = "sphere";
 };
@@ -70,14 +71,19 @@ void checkWritable(const std::string& path) {
 }
 
 // --device gpu: the Vulkan path, or a one-line error. auto: the Vulkan path
-// on a discrete, integrated or virtual GPU; with no loader, no driver or only
-// a CPU implementation (lavapipe), the CPU reference, and `why` says so.
+// on the best device (lavapipe counts); with no loader, no usable device or
+// a method the GPU path lacks, the CPU reference, and `why` says so.
 std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, Method method, std::string& why) {
   if (!gpuSupportsMethod(method)) {
-    if (o.device == "gpu")
-      throw Error(fmt::format("--device gpu: method {} runs on the CPU reference only (the GPU path renders uniform, "
-                              "cosine, env, brdf and mis); use --device cpu", methodName(method)));
-    why = fmt::format("method {} has no GPU version yet", methodName(method));
+    if (o.device == "gpu") {
+      std::string gpuMethods;
+      for (const MethodInfo& m : allMethods())
+        if (gpuSupportsMethod(m.method)) gpuMethods += fmt::format("{}{}", gpuMethods.empty() ? "" : ", ", m.name);
+      throw Error(fmt::format("--device gpu: method {} runs on the CPU reference only (the GPU path renders {}); "
+                              "use --device cpu",
+                              methodName(method), gpuMethods));
+    }
+    why = fmt::format("method {} has no GPU version", methodName(method));
     return nullptr;
   }
   try {
@@ -88,10 +94,6 @@ std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, Method method, std:
       int best = defaultGpuDevice(devices);
       if (best < 0) {
         why = "no usable Vulkan device";
-        return nullptr;
-      }
-      if (devices[best].type == "cpu") {
-        why = fmt::format("no GPU; the CPU Vulkan device {} runs with --device gpu", devices[best].name);
         return nullptr;
       }
       g.deviceIndex = best;
@@ -123,8 +125,7 @@ int runInfo() {
   if (best < 0)
     std::printf("--device gpu: no usable device; --device auto: the CPU reference\n");
   else
-    std::printf("--device gpu uses [%d] %s; --device auto uses %s\n", best, devices[best].name.c_str(),
-                devices[best].type == "cpu" ? "the CPU reference (no GPU)" : "it too");
+    std::printf("--device gpu and --device auto use [%d] %s\n", best, devices[best].name.c_str());
   return 0;
 }
 
@@ -141,20 +142,25 @@ int runRender(const RenderOptions& o) {
   checkWritable(png.string());
   if (!o.stats.empty()) checkWritable(o.stats);
 
+  // Bad input is refused before a device is opened (which may compile shaders).
   auto t0 = std::chrono::steady_clock::now();
-  std::string cpuWhy;
-  std::unique_ptr<GpuRenderer> gpu = o.device == "cpu" ? nullptr : openGpu(o, *method, cpuWhy);
-  double tDevice = secondsSince(t0);
-
-  t0 = std::chrono::steady_clock::now();
   Scene scene = readSceneFile(resolveScene(o.scene));
   double tParse = secondsSince(t0);
   t0 = std::chrono::steady_clock::now();
+  scene.environmentDesc.repairNonFinite = o.repairNonFinite;
   loadEnvironment(scene);
   double tEnv = secondsSince(t0);
+  if (scene.environmentStats.repairedNonFiniteTexels > 0)
+    std::fprintf(stderr, "warning: %s: set %llu NaN/Inf texel value(s) to 0\n", scene.environmentDesc.file.c_str(),
+                 (unsigned long long)scene.environmentStats.repairedNonFiniteTexels);
   if (scene.environmentStats.clampedNegativeTexels > 0 && !o.quiet)
     std::fprintf(stderr, "warning: %s: clamped %llu tiny negative texel value(s) to 0\n",
                  scene.environmentDesc.file.c_str(), (unsigned long long)scene.environmentStats.clampedNegativeTexels);
+
+  t0 = std::chrono::steady_clock::now();
+  std::string cpuWhy;
+  std::unique_ptr<GpuRenderer> gpu = o.device == "cpu" ? nullptr : openGpu(o, *method, cpuWhy);
+  double tDevice = secondsSince(t0);
 
   if (!o.quiet && gpu)
     std::fprintf(stderr, "device: gpu %s (%s, Vulkan %s)\n", gpu->device().name.c_str(), gpu->device().type.c_str(),
@@ -213,7 +219,8 @@ int runRender(const RenderOptions& o) {
       {"environment",
        {{"file", scene.environmentDesc.file},
         {"nside", scene.environment.nside()},
-        {"clamped_negative_texels", scene.environmentStats.clampedNegativeTexels}}},
+        {"clamped_negative_texels", scene.environmentStats.clampedNegativeTexels},
+        {"repaired_nonfinite_texels", scene.environmentStats.repairedNonFiniteTexels}}},
       {"shaded_pixels", r.shadedPixels},
       {"mean_samples_per_pixel", double(r.counters.directions) / shaded},
       {"mean_shadow_rays_per_pixel", double(r.counters.shadowRays) / shaded},
@@ -222,6 +229,11 @@ int runRender(const RenderOptions& o) {
        {{"parse", tParse}, {"environment", tEnv}, {"prepare", tPrepare}, {"render", r.seconds}, {"write", tWrite}}},
       {"outputs", {o.out, png.string()}},
   };
+  // The environment stage split: file read + checks, HEALPix resampling, max/avg tree.
+  stats["seconds"]["environment_load"] = scene.environmentStats.loadSeconds;
+  stats["seconds"]["environment_trees"] = scene.environment.treeSeconds;
+  stats["seconds"]["environment_resample"] =
+      std::max(0.0, tEnv - scene.environmentStats.loadSeconds - scene.environment.treeSeconds);
   if (gpu) {
     stats["seconds"]["device"] = tDevice;
     stats["seconds"]["upload"] = tUpload;
@@ -276,6 +288,8 @@ int main(int argc, char** argv) {
                      "wis*: HEALPix order of the sampled product (Nside 2^order, at most the environment's)")
       ->check(CLI::Range(0, WisPoint::kMaxOrder))
       ->capture_default_str();
+  render->add_flag("--repair-nonfinite", o.repairNonFinite,
+                  "set NaN/Inf texels of the environment to 0 with a warning instead of refusing the map");
   render->add_flag("--quiet,-q", o.quiet, "no progress or summary on stderr");
 
   CLI::App* methods = app.add_subcommand("methods", "list the sampling methods");

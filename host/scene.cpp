@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -291,8 +292,11 @@ void loadEnvironmentFile(Scene& scene) {
   fs::path file = scene.environmentDesc.file;
   if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
   scene.environmentDesc.file = file.lexically_normal().string();
+  const auto t0 = std::chrono::steady_clock::now();
   ImageRGB image = readExr(scene.environmentDesc.file);
-  scene.environmentStats = sanitizeEnvironmentImage(image, scene.environmentDesc.file);
+  scene.environmentStats =
+      sanitizeEnvironmentImage(image, scene.environmentDesc.file, scene.environmentDesc.repairNonFinite);
+  scene.environmentStats.loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double peak = double(scene.environmentStats.maxTexel) * double(scene.environmentDesc.scale);
   if (peak > kMaxRadiance)
     throw Error(fmt::format("{}: brightest texel {:g} times environment.scale {:g} = {:g} exceeds {:g}",

@@ -37,6 +37,7 @@ struct EnvironmentDesc {
   int nside = 256;
   float yaw = 0.0f;  // degrees
   float scale = 1.0f;
+  bool repairNonFinite = false;  // set NaN/Inf texels to 0 instead of refusing the map
 };
 
 struct Scene {

@@ -62,9 +62,9 @@ PY
   fi
 done
 
-# auto falls back to the CPU and says so
+# auto says which device it picked
 "$bin" render --scene "$data/scenes/furnace.json" --spp 1 --width 8 --height 8 --out "$tmp/a.exr" 2>"$tmp/err" \
-  && grep -q "cpu" "$tmp/err" && ok || fail "auto device"
+  && grep -Eq "^device: (gpu|cpu reference)" "$tmp/err" && ok || fail "auto device: $(cat "$tmp/err")"
 
 expect_error 'unknown method "nope"' render --scene "$data/scenes/furnace.json" --method nope --out "$tmp/x.exr"
 expect_error "does not exist" render --scene "$data/scenes/furnace.json" --out "$tmp/missing/dir/x.exr"
@@ -150,6 +150,11 @@ expect_render_error "$tmp/depth.exr: no colour channels" "$tmp/e-depth.json"
 wexr --out "$tmp/nan.exr" --set 2,3,1,inf,1 --set 5,1,nan,1,1
 write_scene "$tmp/nan.exr" "$tmp/e-nan.json"
 expect_render_error "$tmp/nan.exr: 2 NaN/Inf texel value(s), first at pixel (5, 1)" "$tmp/e-nan.json"
+# --repair-nonfinite renders instead, warns with the count, records it.
+"$bin" render --scene "$tmp/e-nan.json" --repair-nonfinite --spp 1 --out "$tmp/repaired.exr" --stats "$tmp/repaired.json" 2>"$tmp/err" \
+  && grep -q "set 2 NaN/Inf texel value(s) to 0" "$tmp/err" \
+  && grep -q '"repaired_nonfinite_texels": 2' "$tmp/repaired.json" && ok \
+  || fail "--repair-nonfinite: $(cat "$tmp/err")"
 wexr --out "$tmp/nan-half.exr" --type half --tile 4 --set 0,2,1,1,nan
 write_scene "$tmp/nan-half.exr" "$tmp/e-nan-half.json"
 expect_render_error "$tmp/nan-half.exr: 1 NaN/Inf texel value(s), first at pixel (0, 2)" "$tmp/e-nan-half.json"
