@@ -677,5 +677,41 @@ TEST(GpuCompetitors, TsisAndWisNeedFloat64) {
   expectNoValidationMessages();
 }
 
+
+// Faults end in one-line errors, never in a hang: a buffer larger than any
+// heap, and a submission that cannot finish (it waits for an event the host
+// sets only after the timeout).
+TEST(GpuFaults, OutOfMemoryAndTimeoutAreErrors) {
+  vk::ContextOptions co;
+  co.validation = true;
+  co.validationLog = validationLog();
+  co.submitTimeoutSeconds = 0.5;
+  vk::Context ctx(co);
+  VkDeviceSize largest = 0;
+  for (uint32_t h = 0; h < ctx.memory.memoryHeapCount; ++h) largest = std::max(largest, ctx.memory.memoryHeaps[h].size);
+  try {
+    vk::Buffer huge(ctx, 2 * largest, vk::MemoryUse::DeviceLocal);
+    ADD_FAILURE() << "a buffer twice the largest heap was created";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("out of GPU memory"), std::string::npos) << e.what();
+  }
+
+  VkEventCreateInfo ei{VK_STRUCTURE_TYPE_EVENT_CREATE_INFO};
+  VkEvent event = VK_NULL_HANDLE;
+  ASSERT_EQ(vkCreateEvent(ctx.device, &ei, nullptr, &event), VK_SUCCESS);
+  try {
+    ctx.submitAndWait([&](VkCommandBuffer cmd) {
+      vkCmdWaitEvents(cmd, 1, &event, VK_PIPELINE_STAGE_HOST_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, nullptr, 0,
+                      nullptr, 0, nullptr);
+    });
+    ADD_FAILURE() << "a submission that cannot finish returned";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("did not finish within 0.5 s"), std::string::npos) << e.what();
+  }
+  vkSetEvent(ctx.device, event);
+  vkDeviceWaitIdle(ctx.device);
+  vkDestroyEvent(ctx.device, event, nullptr);
+}
+
 }  // namespace
 }  // namespace ht

@@ -1,5 +1,6 @@
 #include "vk/buffers.h"
 
+#include <algorithm>
 #include <cstring>
 #include <utility>
 
@@ -44,6 +45,13 @@ uint32_t chooseMemoryType(const VkPhysicalDeviceMemoryProperties& mem, uint32_t 
 
 Buffer::Buffer(Context& ctx, VkDeviceSize size, MemoryUse use, VkBufferUsageFlags usage) : ctx_(&ctx), size_(size) {
   try {
+    // Larger than every heap: refused here, as drivers differ in how they fail.
+    VkDeviceSize largestHeap = 0;
+    for (uint32_t h = 0; h < ctx.memory.memoryHeapCount; ++h)
+      largestHeap = std::max(largestHeap, ctx.memory.memoryHeaps[h].size);
+    if (size > largestHeap)
+      throw Error(fmt::format("buffer of {:.1f} MiB: out of GPU memory (the largest memory heap holds {:.1f} MiB)",
+                              double(size) / (1 << 20), double(largestHeap) / (1 << 20)));
     VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
     info.size = size;
     info.usage = usage | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT |

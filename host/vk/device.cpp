@@ -255,7 +255,8 @@ int bestDevice(const std::vector<PhysicalDeviceInfo>& devices) {
 }
 
 Context::Context(const ContextOptions& options)
-    : log_(options.validationLog ? options.validationLog : std::make_shared<ValidationLog>()) {
+    : log_(options.validationLog ? options.validationLog : std::make_shared<ValidationLog>()),
+      submitTimeoutSeconds_(options.submitTimeoutSeconds) {
   try {
     instance = createInstance(options.validation, log_.get());
     if (options.validation) {
@@ -346,7 +347,10 @@ void Context::submitAndWait(const std::function<void(VkCommandBuffer)>& record) 
     VkDevice device;
     VkCommandPool pool;
     VkCommandBuffer cmd;
-    ~Free() { vkFreeCommandBuffers(device, pool, 1, &cmd); }
+    bool pending = false;  // still executing: left to the pool's destruction
+    ~Free() {
+      if (!pending) vkFreeCommandBuffers(device, pool, 1, &cmd);
+    }
   } freeLater{device, commandPool, cmd};
   VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
@@ -358,7 +362,16 @@ void Context::submitAndWait(const std::function<void(VkCommandBuffer)>& record) 
   submit.pCommandBuffers = &cmd;
   check(vkResetFences(device, 1, &fence_), "vkResetFences");
   check(vkQueueSubmit(queue, 1, &submit, fence_), "vkQueueSubmit");
-  check(vkWaitForFences(device, 1, &fence_, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+  const VkResult waited =
+      vkWaitForFences(device, 1, &fence_, VK_TRUE, uint64_t(std::max(submitTimeoutSeconds_, 0.0) * 1e9));
+  freeLater.pending = waited != VK_SUCCESS;
+  if (waited == VK_TIMEOUT)
+    throw Error(fmt::format("the GPU did not finish within {:g} s (device hung or far too slow; "
+                            "try --device cpu)",
+                            submitTimeoutSeconds_));
+  if (waited == VK_ERROR_DEVICE_LOST)
+    throw Error("the Vulkan device was lost while rendering (VK_ERROR_DEVICE_LOST: driver reset or GPU fault)");
+  check(waited, "vkWaitForFences");
 }
 
 }  // namespace ht::vk

@@ -53,6 +53,7 @@ struct ContextOptions {
   bool validation = false;  // VK_LAYER_KHRONOS_validation + counting messenger
   bool useFloat64 = true;   // enable shaderFloat64 where the device has it
   std::shared_ptr<ValidationLog> validationLog;  // where messages are counted; null: a log of its own
+  double submitTimeoutSeconds = 300.0;  // a submission still running after this is an error, not a hang
 };
 
 // Lists the physical devices without creating one (throws ht::Error when
@@ -78,7 +79,8 @@ class Context {
   PhysicalDeviceInfo info;
   bool float64 = false;  // shaderFloat64 enabled
 
-  // Records `record` into a fresh command buffer, submits it and waits.
+  // Records `record` into a fresh command buffer, submits it and waits at
+  // most submitTimeoutSeconds; device loss and the timeout throw ht::Error.
   void submitAndWait(const std::function<void(VkCommandBuffer)>& record);
 
   // Validation messages (severity warning or error) since creation.
@@ -88,6 +90,7 @@ class Context {
   VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
   VkFence fence_ = VK_NULL_HANDLE;
   std::shared_ptr<ValidationLog> log_;
+  double submitTimeoutSeconds_ = 300.0;
   void destroy();
 };
 
