@@ -8,7 +8,6 @@
 # Extra arguments go to both ctest runs. Stops at the first stage that fails.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-export MESA_SHADER_CACHE_DISABLE=true
 jobs=$(nproc)
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
