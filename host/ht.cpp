@@ -125,16 +125,19 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
   };
   if (options.visibility) {
     // Caps shrink by a milliradian so that "inside" always means blocked.
+    // They are seen from where the shadow rays start: a hit point rounded
+    // to just below its own plane would otherwise see the sky as blocked.
     constexpr float kMargin = 1e-3f;
+    const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
     for (const Sphere& s : scene.spheres) {
-      glm::vec3 d = s.center - sp.position;
+      glm::vec3 d = s.center - origin;
       float dist = glm::length(d);
       if (dist <= 0.0f) continue;
       float angle = std::asin(std::min(1.0f, s.radius / dist)) - kMargin;
       if (angle > 0.0f) addCap(glm::normalize(toFloat(env.toHealpixFrame(d / dist))), angle);
     }
     for (const Plane& p : scene.planes) {
-      float side = glm::dot(sp.position - p.point, p.normal);
+      float side = glm::dot(origin - p.point, p.normal);
       glm::vec3 below = side >= 0.0f ? -p.normal : p.normal;
       addCap(glm::normalize(toFloat(env.toHealpixFrame(below))), 0.5f * kPi - kMargin);
     }

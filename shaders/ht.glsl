@@ -245,9 +245,11 @@ void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
   if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u) htTableInit();
   ht.capCount = 0u;
   if ((ht.flags & HT_FLAG_VISIBILITY) != 0u) {
+    // Seen from the shadow rays' origin, as on the CPU.
+    precise vec3 origin = offsetRayOrigin(position, normal);
     for (uint k = 0u; k < scene.sphereCount; ++k) {
       GpuSphere sp = spheres[k];
-      precise vec3 d = sp.center - position;
+      precise vec3 d = sp.center - origin;
       precise float dist = length3(d);
       if (dist <= 0.0) continue;
       precise float ratio = sp.radius / dist;
@@ -257,7 +259,7 @@ void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
     }
     for (uint k = 0u; k < scene.planeCount; ++k) {
       GpuPlane p = planes[k];
-      precise vec3 rel = position - p.point;
+      precise vec3 rel = origin - p.point;
       float side = dot3(rel, p.normal);
       vec3 below = side >= 0.0 ? -p.normal : p.normal;
       htAddCap(normalize3(vec3(toHealpixFrame(below))), kHtPlaneCapAngle);

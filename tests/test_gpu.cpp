@@ -470,11 +470,7 @@ TEST_P(GpuOtherSeeds, AgreesWithCpuStatistically) {
   EXPECT_EQ(failed, 0u) << "pixels beyond the Sidak-corrected threshold";
   EXPECT_LT(std::fabs(relDiff), std::min(4.0 * relSe, 0.02));
 }
-// ht-vis and ht-vis-biased are left out: in shadowed pixels their 64-spp
-// estimate is mostly 0 with rare large values, beyond what 32 runs' spread
-// can judge (seed 1 gives t = +9.8 in one pixel, on the CPU as on the GPU,
-// bit for bit). GpuHt.AcceptsTheCpuSamples checks them seed for seed.
-INSTANTIATE_TEST_SUITE_P(Ht, GpuOtherSeeds, ::testing::Values(Method::Ht, Method::HtBiased),
+INSTANTIATE_TEST_SUITE_P(Ht, GpuOtherSeeds, ::testing::Values(Method::Ht, Method::HtBiased, Method::HtVis, Method::HtVisBiased),
                          [](const auto& info) {
                            std::string name = methodName(info.param);
                            std::replace(name.begin(), name.end(), '-', '_');

@@ -264,6 +264,32 @@ TEST(Ht, LevelRadiusBoundsEveryNode) {
 
 // ht and ht-vis are unbiased: z-tests against the brute-force integral at
 // the shading points of the baseline tests and a black hemisphere.
+// Hit points round to either side of their surface. The visibility caps
+// must not see a point rounded to just below its own plane, or just inside
+// its own sphere, as blocked from the sky: white furnace, Lambert 0.8, the
+// estimate stays 0.8 on both sides.
+TEST(Ht, VisibilityCapsIgnoreRoundingAcrossTheOwnSurface) {
+  for (float dy : {0.0f, -1e-6f, 1e-6f}) {
+    ShadingSetup s = makeSetup("furnace", constantEnvironment(4, glm::vec3(1.0f)), lambert(0.8f), {0.3f, 1.0f, 0.2f});
+    s.sp.position.y = dy;
+    s.sp.material = &s.scene.materials[0];
+    Rng rng(5, 1);
+    EstimateCounters counters;
+    glm::vec3 e = estimateHt(s.scene, s.sp, optionsFor(true), 64, 77, rng, counters);
+    EXPECT_NEAR(e.g, 0.8f, 0.1f) << "plane, dy = " << dy;
+  }
+  // A point on a sphere's top, rounded into it.
+  ShadingSetup s = makeSetup("furnace", constantEnvironment(4, glm::vec3(1.0f)), lambert(0.8f), {0.3f, 1.0f, 0.2f},
+                             {{glm::vec3(0.0f, 1.0f, 0.0f), 1.0f, 0}});
+  s.scene.planes.clear();
+  s.sp.position = glm::vec3(0.0f, 2.0f - 1e-6f, 0.0f);
+  s.sp.material = &s.scene.materials[0];
+  Rng rng(6, 1);
+  EstimateCounters counters;
+  glm::vec3 e = estimateHt(s.scene, s.sp, optionsFor(true), 64, 78, rng, counters);
+  EXPECT_NEAR(e.g, 0.8f, 0.1f) << "sphere";
+}
+
 TEST(Ht, UnbiasedAgainstBruteForce) {
   const int order = 5;
   std::vector<ShadingSetup> setups;
