@@ -136,6 +136,8 @@ int runRender(const RenderOptions& o) {
     for (const MethodInfo& m : allMethods()) names += std::string(names.empty() ? "" : ", ") + m.name;
     throw Error(fmt::format("unknown method \"{}\" (one of: {})", o.method, names));
   }
+  if (o.device == "cpu" && o.gpuIndex >= 0)
+    throw Error("--gpu-index picks a Vulkan device: it conflicts with --device cpu");
   if (fs::path(o.out).extension() != ".exr") throw Error(fmt::format("{}: --out must end in .exr", o.out));
   fs::path png = fs::path(o.out).replace_extension(".png");
   checkWritable(o.out);

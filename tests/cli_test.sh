@@ -67,6 +67,8 @@ done
   && grep -Eq "^device: (gpu|cpu reference)" "$tmp/err" && ok || fail "auto device: $(cat "$tmp/err")"
 
 expect_error 'unknown method "nope"' render --scene "$data/scenes/furnace.json" --method nope --out "$tmp/x.exr"
+expect_error "conflicts with --device cpu" render --scene "$data/scenes/furnace.json" --device cpu --gpu-index 0 \
+  --out "$tmp/x.exr"
 expect_error "does not exist" render --scene "$data/scenes/furnace.json" --out "$tmp/missing/dir/x.exr"
 expect_error "cannot open scene file" render --scene "$tmp/none.json" --out "$tmp/x.exr"
 expect_error "must end in .exr" render --scene "$data/scenes/furnace.json" --out "$tmp/x.png"
