@@ -1,47 +1,106 @@
 #!/usr/bin/python3
 """Error against time for every method, measured side by side in one run.
 
-Renders scene x method x spp with `htrender render`, times each render
-(median of --runs after one warm-up run that is not counted), and measures
-its error against a converged reference: RMSE, relative MSE and mean absolute
-relative error (`htrender compare`). Writes results.csv, results.json (with
-the machine, device, build and settings) and results.md into --out.
+Renders scene x device x method x spp with `htrender render`, times each
+render (the fastest of --runs: other load on the machine only ever adds time;
+one uncounted warm-up render per scene and device first), and measures its error against a converged reference: RMSE,
+relative MSE and mean absolute relative error (`htrender compare`), and the
+fireflies (pixels whose luminance error exceeds 10 robust sigma of the
+image's error, see `fireflies`). Writes results.csv, results.json (with the
+machine, devices, build, settings and skipped points) and results.md into
+--out, and keeps one EXR per point there (the first timed run).
+
+Methods: every method of `htrender methods` except oracle, which is slow and
+only rendered with --oracle, at --oracle-spp (its 16 spp is the variance
+floor the others are compared with).
+
+Devices: --device cpu,gpu renders every point on each device in the same
+run. A method a device does not render (the command refuses it) is skipped
+there with a note. Wall time (`seconds.render`) is the compared time; where
+the device reports it, the GPU time (`seconds.gpu`, timestamp queries) is
+recorded next to it.
 
 The reference is the mean of two independent renders (different seeds) by an
-unbiased method at high spp, cached under --out keyed by scene content,
-resolution, method, spp and htrender version. Its own residual RMSE is
-estimated from the difference of its two halves and reported.
+unbiased method at high spp on the CPU, cached under --out keyed by scene
+content, resolution, method, spp and htrender version. Its own residual error
+is estimated from the difference of its two halves and reported.
 """
 import argparse
 import hashlib
 import json
 import os
 import platform
-import statistics
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+FIREFLY_SIGMAS = 10.0
+
+
+class RenderRefused(Exception):
+    pass
 
 
 def run(cmd):
-    res = subprocess.run(cmd, capture_output=True, text=True)
+    res = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
     if res.returncode != 0:
         sys.exit(f"bench: command failed: {' '.join(map(str, cmd))}\n{res.stderr.strip()}")
     return res.stdout
 
 
-def render(args, scene, method, spp, seed, out, extra=()):
-    stats = out.with_suffix(".json")
+# --- images: one place for reading EXRs and counting fireflies (report.py uses these too) ---
+
+def read_exr(htrender, path, tmpdir=None):
+    """An EXR as a float32 array (height, width, 3), top row first, via `htrender export` (PFM)."""
+    import numpy as np
+    with tempfile.TemporaryDirectory(dir=tmpdir) as tmp:
+        pfm = Path(tmp) / "image.pfm"
+        subprocess.run([str(htrender), "export", str(path), "--out", str(pfm)], check=True,
+                       stdout=subprocess.DEVNULL)
+        data = pfm.read_bytes()
+    head = data.split(b"\n", 3)
+    w, h = map(int, head[1].split())
+    scale = float(head[2])
+    dtype = "<f4" if scale < 0 else ">f4"
+    return np.frombuffer(head[3], dtype=dtype).reshape(h, w, 3)[::-1].astype(np.float32)
+
+
+def lum(img):
+    return 0.2126 * img[..., 0] + 0.7152 * img[..., 1] + 0.0722 * img[..., 2]
+
+
+def fireflies(test, ref, sigmas=FIREFLY_SIGMAS):
+    """Pixels whose luminance error against the reference exceeds `sigmas` robust standard deviations
+    (1.4826 x median absolute deviation) of the image's error. The deviation is taken over the pixels
+    whose error is not exactly 0 (those that show the environment directly are exact for every
+    method) and floored at 1e-4 of the reference's mean luminance, so that a nearly exact image does
+    not count its rounding."""
+    import numpy as np
+    d = lum(test).astype(np.float64) - lum(ref).astype(np.float64)
+    nz = d[d != 0.0]
+    sigma = 1.4826 * float(np.median(np.abs(nz - np.median(nz)))) if nz.size else 0.0
+    sigma = max(sigma, 1e-4 * float(np.mean(np.abs(lum(ref)))), 1e-12)
+    return int(np.sum(np.abs(d) > sigmas * sigma))
+
+
+# --- rendering ---
+
+def render(args, scene, method, spp, seed, out, device="cpu", extra=()):
+    stats = Path(out).with_suffix(".json")
     cmd = [args.htrender, "render", "--scene", scene, "--method", method, "--spp", str(spp), "--seed", str(seed),
-           "--device", args.device, "--out", str(out), "--stats", str(stats), "-q", *extra]
+           "--device", device, "--out", str(out), "--stats", str(stats), "-q", *extra]
     if args.width:
         cmd += ["--width", str(args.width)]
     if args.height:
         cmd += ["--height", str(args.height)]
-    run(cmd)
+    res = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
+    if res.returncode != 0:
+        msg = res.stderr.strip().splitlines()[-1] if res.stderr.strip() else f"exit status {res.returncode}"
+        if device != "cpu":
+            raise RenderRefused(msg)
+        sys.exit(f"bench: command failed: {' '.join(map(str, cmd))}\n{res.stderr.strip()}")
     return json.loads(stats.read_text())
 
 
@@ -92,13 +151,33 @@ def machine():
     return {"cpu": cpu, "cores": os.cpu_count(), "system": platform.platform()}
 
 
+def all_methods(htrender):
+    names = []
+    for line in run([htrender, "methods"]).splitlines():
+        if line.strip() and not line.startswith(" "):
+            names.append(line.split()[0])
+    return names
+
+
+def image_name(scene, method, device, spp):
+    return f"{Path(scene).stem}-{method}-{device}-{spp}.exr"
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scene", action="append", help="scene JSON (repeatable); default data/scenes/spheres.json")
-    p.add_argument("--methods", default="env,brdf,mis,ht,ht-vis,ht-biased,ht-vis-biased")
+    p.add_argument("--methods", default="all", help="comma-separated, or 'all' (every method but oracle)")
+    p.add_argument("--oracle", action="store_true", help="also render oracle (at --oracle-spp only)")
+    p.add_argument("--oracle-spp", default="16", help="spp list for oracle (default 16)")
     p.add_argument("--spp", default="4,16,64,256")
-    p.add_argument("--runs", type=int, default=3, help="timed runs per point (median); one warm-up run first")
-    p.add_argument("--device", default="cpu")
+    p.add_argument("--runs", type=int, default=3, help="timed runs per point (the fastest counts)")
+    p.add_argument("--warmup", type=int, default=1, help="uncounted renders per scene and device")
+    p.add_argument("--device", default="cpu", help="comma-separated devices, e.g. cpu,gpu")
+    p.add_argument("--gpu-spp", default="", help="spp list on devices other than cpu (default: --spp)")
+    p.add_argument("--gpu-runs", type=int, default=0, help="timed runs on devices other than cpu (default: --runs)")
+    p.add_argument("--max-seconds", type=float, default=0.0,
+                   help="skip a method's larger spp on a device when its render would take longer (predicted "
+                        "linearly from the previous spp), and time a render longer than half of it once (0: never)")
     p.add_argument("--width", type=int, default=0)
     p.add_argument("--height", type=int, default=0)
     p.add_argument("--ref-method", default="mis")
@@ -111,62 +190,123 @@ def main():
 
     outdir = Path(args.out)
     outdir.mkdir(parents=True, exist_ok=True)
-    scenes = args.scene or [str(ROOT / "data" / "scenes" / "spheres.json")]
-    methods = [m for m in args.methods.split(",") if m]
+    scenes = [str(Path(s).resolve()) for s in (args.scene or [ROOT / "data" / "scenes" / "spheres.json"])]
+    known = all_methods(args.htrender)
+    if args.methods == "all":
+        methods = [m for m in known if m != "oracle"]
+    else:
+        methods = [m for m in args.methods.split(",") if m]
+        unknown = [m for m in methods if m not in known]
+        if unknown:
+            sys.exit(f"bench: unknown method(s) {', '.join(unknown)} (htrender methods: {', '.join(known)})")
+    if args.oracle and "oracle" not in methods:
+        methods.append("oracle")
     spps = [int(s) for s in args.spp.split(",") if s]
+    oracle_spps = [int(s) for s in args.oracle_spp.split(",") if s]
+    devices = [d for d in args.device.split(",") if d]
     extra = args.extra.split()
-    rows = []
+    rows, skipped = [], []
     refs = {}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for scene in scenes:
             ref, refinfo = reference(args, scene, outdir)
-            refs[scene] = {"file": str(ref), **refinfo}
-            for method in methods:
-                for spp in spps:
-                    img = outdir / f"{Path(scene).stem}-{method}{args.label}-{spp}.exr"
-                    render(args, scene, method, spp, 1, tmp / "warmup.exr", extra)
-                    times, gpu_times, stats = [], [], None
-                    for k in range(args.runs):
-                        stats = render(args, scene, method, spp, 1 + k, img if k == 0 else tmp / "run.exr", extra)
-                        times.append(stats["seconds"]["render"])
-                        if "gpu" in stats["seconds"]:
-                            gpu_times.append(stats["seconds"]["gpu"])
-                    err = compare(args, ref, img)
-                    row = {"scene": Path(scene).stem, "method": method + args.label, "spp": spp,
-                           "seconds": statistics.median(times), "seconds_runs": times,
-                           "gpu_seconds": statistics.median(gpu_times) if gpu_times else None,
-                           "device": stats["device"]["name"], "samples_per_pixel": stats["mean_samples_per_pixel"],
-                           **err}
-                    rows.append(row)
-                    print(f"{row['scene']:>10} {row['method']:>14} {spp:>5} spp  {row['seconds']:8.3f} s  "
-                          f"rmse {err['rmse']:.4f}  relmse {err['relmse']:.5f}", file=sys.stderr)
+            refs[scene] = {"file": ref.name, **refinfo}
+            ref_img = read_exr(args.htrender, ref, tmp)
+            for device in devices:
+                on_cpu = device == "cpu"
+                runs = args.runs if on_cpu or not args.gpu_runs else args.gpu_runs
+                dev_spps = spps if on_cpu or not args.gpu_spp else [int(s) for s in args.gpu_spp.split(",") if s]
+                for w in range(args.warmup):  # file caches, driver start-up; never counted
+                    try:
+                        render(args, scene, "mis", min(dev_spps), 1, tmp / "warmup.exr", device, extra)
+                    except RenderRefused:
+                        pass
+                for method in methods:
+                    name = method + args.label
+                    point_spps = oracle_spps if method == "oracle" else dev_spps
+                    last = None  # (spp, seconds) of the previous point
+                    for spp in point_spps:
+                        predicted = last[1] * spp / last[0] if last else 0.0
+                        if args.max_seconds > 0 and predicted > args.max_seconds:
+                            skipped.append({"scene": Path(scene).stem, "device": device, "method": name, "spp": spp,
+                                            "reason": f"about {predicted:.0f} s per render > --max-seconds "
+                                                      f"{args.max_seconds:g}"})
+                            print(f"bench: {device}: skipping {name} at {spp} spp (about {predicted:.0f} s)",
+                                  file=sys.stderr)
+                            continue
+                        img = outdir / image_name(scene, name, device, spp)
+                        times, gpu_times, stats = [], [], None
+                        try:
+                            for k in range(runs):
+                                stats = render(args, scene, method, spp, 1 + k, img if k == 0 else tmp / "run.exr",
+                                               device, extra)
+                                times.append(stats["seconds"]["render"])
+                                if stats["seconds"].get("gpu") is not None:
+                                    gpu_times.append(stats["seconds"]["gpu"])
+                                if args.max_seconds > 0 and times[-1] > args.max_seconds / 2:
+                                    break  # a long render: one timed run is enough
+                        except RenderRefused as e:
+                            skipped.append({"scene": Path(scene).stem, "device": device, "method": name,
+                                            "reason": str(e)})
+                            print(f"bench: {device}: skipping {name}: {e}", file=sys.stderr)
+                            break
+                        err = compare(args, ref, img)
+                        ff = fireflies(read_exr(args.htrender, img, tmp), ref_img)
+                        sec = stats["seconds"]
+                        row = {"scene": Path(scene).stem, "method": name, "device": device, "spp": spp,
+                               "seconds": min(times), "seconds_runs": times,
+                               "gpu_seconds": min(gpu_times) if gpu_times else None,
+                               "setup_seconds": sec.get("environment", 0.0) + sec.get("prepare", 0.0)
+                               + sec.get("device", 0.0) + sec.get("upload", 0.0),
+                               "device_name": stats["device"]["name"],
+                               "samples_per_pixel": stats["mean_samples_per_pixel"],
+                               "fireflies": ff, "file": img.name, **err}
+                        rows.append(row)
+                        gpu = f" (gpu {row['gpu_seconds']:.3f} s)" if row["gpu_seconds"] is not None else ""
+                        print(f"{row['scene']:>16} {device:>4} {name:>14} {spp:>5} spp  {row['seconds']:8.3f} s{gpu}  "
+                              f"rmse {err['rmse']:.4f}  relmse {err['relmse']:.5f}  fireflies {ff}", file=sys.stderr)
+                        last = (spp, min(times))
+                        Path(img).with_suffix(".json").unlink(missing_ok=True)
 
     build = {}
-    cache = ROOT / "build" / "CMakeCache.txt"
+    cache = Path(args.htrender).resolve().parent / "CMakeCache.txt"
+    if not cache.exists():
+        cache = ROOT / "build" / "CMakeCache.txt"
     if cache.exists():
         for line in cache.read_text().splitlines():
             if line.startswith("CMAKE_BUILD_TYPE:"):
                 build["type"] = line.split("=", 1)[1]
-    result = {"machine": machine(), "build": build, "device": args.device, "runs": args.runs,
-              "extra": args.extra, "references": refs, "results": rows}
+    build["version"] = run([args.htrender, "--version"]).strip()
+    result = {"machine": machine(), "build": build, "devices": devices, "device": ",".join(devices),
+              "runs": args.runs, "gpu_runs": args.gpu_runs or args.runs, "oracle_spp": oracle_spps, "warmup": args.warmup, "spp": spps, "width": args.width, "height": args.height,
+              "extra": args.extra, "firefly_sigmas": FIREFLY_SIGMAS, "references": refs, "results": rows,
+              "skipped": skipped}
     (outdir / "results.json").write_text(json.dumps(result, indent=2))
-    cols = ["scene", "method", "spp", "seconds", "samples_per_pixel", "rmse", "relmse", "mean_abs_rel_error", "device"]
+    cols = ["scene", "device", "method", "spp", "seconds", "gpu_seconds", "setup_seconds", "samples_per_pixel",
+            "rmse", "relmse", "mean_abs_rel_error", "fireflies", "device_name"]
     with open(outdir / "results.csv", "w") as f:
         f.write(",".join(cols) + "\n")
         for r in rows:
-            f.write(",".join(str(r[c]) for c in cols) + "\n")
+            f.write(",".join("" if r.get(c) is None else str(r[c]).replace(",", " ") for c in cols) + "\n")
     with open(outdir / "results.md", "w") as f:
-        f.write(f"Machine: {result['machine']['cpu']}, {result['machine']['cores']} cores; device {args.device}; "
-                f"median of {args.runs} runs after a warm-up.\n\n")
+        f.write(f"Machine: {result['machine']['cpu']}, {result['machine']['cores']} cores; devices "
+                f"{', '.join(devices)}; fastest of {args.runs} runs after a warm-up.\n\n")
         for scene, info in refs.items():
             f.write(f"Reference for {Path(scene).name}: {info['method']} at {info['spp']} spp, "
                     f"residual RMSE about {info['residual_rmse']:.4f}.\n\n")
-        f.write("| scene | method | spp | render s | samples/px | RMSE | relMSE | mean abs rel err |\n")
-        f.write("|---|---|---|---|---|---|---|---|\n")
+        f.write("| scene | device | method | spp | render s | gpu s | samples/px | RMSE | relMSE | mean abs rel err "
+                "| fireflies |\n|---|---|---|---|---|---|---|---|---|---|---|\n")
         for r in rows:
-            f.write(f"| {r['scene']} | {r['method']} | {r['spp']} | {r['seconds']:.3f} | {r['samples_per_pixel']:.1f} "
-                    f"| {r['rmse']:.4f} | {r['relmse']:.5f} | {r['mean_abs_rel_error']:.4f} |\n")
+            g = f"{r['gpu_seconds']:.3f}" if r["gpu_seconds"] is not None else "-"
+            f.write(f"| {r['scene']} | {r['device']} | {r['method']} | {r['spp']} | {r['seconds']:.3f} | {g} "
+                    f"| {r['samples_per_pixel']:.1f} | {r['rmse']:.4f} | {r['relmse']:.5f} "
+                    f"| {r['mean_abs_rel_error']:.4f} | {r['fireflies']} |\n")
+        if skipped:
+            f.write("\nSkipped:\n\n")
+            for s in skipped:
+                f.write(f"- {s['scene']} {s['device']} {s['method']}"
+                        f"{' at ' + str(s['spp']) + ' spp' if 'spp' in s else ''}: {s['reason']}\n")
     print(f"bench: wrote {outdir}/results.{{csv,json,md}}", file=sys.stderr)
 
 

@@ -1,19 +1,24 @@
 #!/usr/bin/python3
-"""Charts and a one-page report from tools/bench.py results.
+"""Charts and a one-page report from tools/bench.py and tools/scaling.py results.
 
-    tools/report.py --bench out/bench [--stress out/stress] --out docs/report
+    tools/report.py --bench out/bench [--stress out/stress] [--scaling out/scaling] --out docs/report
 
 Per scene: relMSE against render time (log-log, one line per method and
 device), relMSE against spp, efficiency 1 / (relMSE x time) as bars; the
-talk's timing table next to ours; crops of every method at equal spp and at
-(about) equal time with per-pixel relative-error heat maps; for the stress
-scenes, every method's relMSE at equal time with the failing methods marked
-and the fireflies (pixels beyond 10 robust sigma) counted.
+talk's timing table (slide 52) next to ours with biased / unbiased ratios and
+the cost per sample; crops of every method at equal spp and at (about) equal
+time with per-pixel relative-error heat maps; wall and GPU times of the
+devices side by side. For the stress scenes, every method's relMSE at equal
+time with the failing methods marked, and the fireflies (counted by bench.py,
+see bench.fireflies). For the scaling sweeps, time against spp, Nside and
+image size, and the environment stage split into load / resample / trees.
+
+Writes README.md and PNG charts into --out (no EXRs).
 """
 import argparse
 import json
 import math
-import subprocess
+import statistics
 import sys
 from pathlib import Path
 
@@ -22,6 +27,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench import lum, read_exr  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 TALK = {  # slide 52: Core 2 Duo 2.4 GHz, one core, seconds
@@ -32,21 +40,8 @@ TALK = {  # slide 52: Core 2 Duo 2.4 GHz, one core, seconds
     "Two-stage": ("tsis", [0.8, 1.8, 5.8, 19.3]),
 }
 TALK_SPP = [4, 16, 64, 256]
-
-
-def read_exr(htrender, path, tmp):
-    pfm = tmp / (Path(path).stem + ".pfm")
-    subprocess.run([htrender, "export", str(path), "--out", str(pfm)], check=True)
-    data = pfm.read_bytes()
-    head = data.split(b"\n", 3)
-    w, h = map(int, head[1].split())
-    img = np.frombuffer(head[3], dtype="<f4").reshape(h, w, 3)[::-1]
-    pfm.unlink()
-    return img
-
-
-def lum(img):
-    return 0.2126 * img[..., 0] + 0.7152 * img[..., 1] + 0.0722 * img[..., 2]
+FAIL_FACTOR = 10.0
+DPI = 80
 
 
 def tonemap(img):
@@ -54,205 +49,457 @@ def tonemap(img):
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
-def fireflies(test, ref):
-    d = lum(test) - lum(ref)
-    sigma = 1.4826 * np.median(np.abs(d - np.median(d))) + 1e-12
-    return int(np.sum(np.abs(d) > 10.0 * sigma))
+def key(r):
+    """A method's name in the report: the method, with its device unless cpu."""
+    return r["method"] if r.get("device", "cpu") == "cpu" else f"{r['method']} ({r['device']})"
 
 
-def interp_at_time(rows, t):
-    """relMSE at time t by log-log interpolation over a method's spp points (None outside)."""
-    pts = sorted((r["seconds"], r["relmse"]) for r in rows)
-    for (t0, e0), (t1, e1) in zip(pts, pts[1:]):
-        if t0 <= t <= t1 and t1 > t0:
-            a = (math.log(t) - math.log(t0)) / (math.log(t1) - math.log(t0))
-            return math.exp(math.log(e0) + a * (math.log(e1) - math.log(e0)))
-    return None
-
-
-def by_method(rows):
+def by_key(rows):
     out = {}
     for r in rows:
-        out.setdefault(r["method"], []).append(r)
+        out.setdefault(key(r), []).append(r)
     for v in out.values():
         v.sort(key=lambda r: r["spp"])
     return out
 
 
+def efficiency(r):
+    return 1.0 / (r["relmse"] * r["seconds"]) if r["relmse"] > 0 and r["seconds"] > 0 else float("inf")
+
+
+def interp_at_time(rows, t):
+    """relMSE at time t: log-log interpolation over a method's spp points; outside them (or with one point),
+    extrapolated from the nearest point as relMSE ~ 1 / time (exact for unbiased methods)."""
+    pts = sorted((r["seconds"], r["relmse"]) for r in rows if r["seconds"] > 0 and r["relmse"] > 0)
+    if not pts:
+        return None
+    for (t0, e0), (t1, e1) in zip(pts, pts[1:]):
+        if t0 <= t <= t1 and t1 > t0:
+            a = (math.log(t) - math.log(t0)) / (math.log(t1) - math.log(t0))
+            return math.exp(math.log(e0) + a * (math.log(e1) - math.log(e0)))
+    t0, e0 = min(pts, key=lambda p: abs(math.log(p[0] / t)))
+    return e0 * t0 / t
+
+
+def fmt_e(v):
+    return "-" if v is None else f"{v:.2e}"
+
+
 def charts(scene, rows, outdir):
-    methods = by_method(rows)
+    methods = by_key(rows)
     fig, ax = plt.subplots(1, 3, figsize=(16, 4.6))
+    base = list(dict.fromkeys(r["method"] for r in rows))
+    cmap = plt.get_cmap("tab20")
     for name, rs in methods.items():
-        label = f"{name} ({rs[0]['device']})" if rs[0].get("device") else name
-        ax[0].loglog([r["seconds"] for r in rs], [r["relmse"] for r in rs], "o-", label=label)
-        ax[1].loglog([r["spp"] for r in rs], [r["relmse"] for r in rs], "o-", label=name)
-    ax[0].set_xlabel("render time (s)")
+        style = "s--" if rs[0].get("device", "cpu") != "cpu" else "o-"
+        color = cmap(base.index(rs[0]["method"]) % 20)
+        ax[0].loglog([r["seconds"] for r in rs], [r["relmse"] for r in rs], style, label=name, ms=4, color=color)
+        ax[1].loglog([r["spp"] for r in rs], [r["relmse"] for r in rs], style, label=name, ms=4, color=color)
+    ax[0].set_xlabel("render time (s, wall)")
     ax[0].set_ylabel("relMSE")
     ax[0].set_title(f"{scene}: error against time")
     ax[1].set_xlabel("samples per pixel")
     ax[1].set_ylabel("relMSE")
     ax[1].set_title("error against spp")
-    names = list(methods)
+    names = [n for n in methods if methods[n][0].get("device", "cpu") == "cpu"]
     spps = sorted({r["spp"] for r in rows})
     width = 0.8 / max(1, len(spps))
     for k, spp in enumerate(spps):
         eff = []
         for n in names:
             r = next((r for r in methods[n] if r["spp"] == spp), None)
-            eff.append(1.0 / (r["relmse"] * r["seconds"]) if r and r["relmse"] > 0 and r["seconds"] > 0 else 0.0)
+            eff.append(efficiency(r) if r and math.isfinite(efficiency(r)) else 0.0)
         ax[2].bar(np.arange(len(names)) + k * width, eff, width, label=f"{spp} spp")
     ax[2].set_yscale("log")
     ax[2].set_xticks(np.arange(len(names)) + 0.4 - width / 2)
     ax[2].set_xticklabels(names, rotation=40, ha="right")
-    ax[2].set_title("efficiency 1 / (relMSE x time)")
+    ax[2].set_title("efficiency 1 / (relMSE x time), cpu")
     ax[2].legend(fontsize=7)
-    ax[0].legend(fontsize=7)
+    ax[0].legend(fontsize=6, ncol=2)
     for a in ax[:2]:
         a.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     path = outdir / f"{scene}-charts.png"
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path.name
 
 
-def image_grid(scene, rows, ref_img, images, outdir, title, pick):
-    methods = by_method(rows)
-    chosen = [(n, pick(rs)) for n, rs in methods.items()]
+def image_grid(scene, chosen, ref_img, images, outdir, title, crop=True):
+    """chosen: [(name, row)]; top: tone-mapped crop, bottom: relative error |L - Lref| / (Lref + 0.01), 0..1."""
     chosen = [(n, r) for n, r in chosen if r is not None and r["file"] in images]
     if not chosen:
         return None
     h, w = ref_img.shape[:2]
-    y0, y1, x0, x1 = h // 4, 3 * h // 4, 0, w  # the band of objects
-    fig, ax = plt.subplots(2, len(chosen), figsize=(2.6 * len(chosen), 3.4), squeeze=False)
+    y0, y1 = (h // 4, 3 * h // 4) if crop else (0, h)
+    cols = min(len(chosen), 7)
+    nrow = (len(chosen) + cols - 1) // cols
+    fig, ax = plt.subplots(2 * nrow, cols, figsize=(2.3 * cols, 2.0 * nrow * (y1 - y0) / w * 2.3 + 0.9 * nrow),
+                           squeeze=False)
+    for a in ax.flat:
+        a.axis("off")
+    ref_l = lum(ref_img)
     for k, (n, r) in enumerate(chosen):
+        i, j = 2 * (k // cols), k % cols
         img = images[r["file"]]
-        ax[0][k].imshow(tonemap(img[y0:y1, x0:x1]))
-        ax[0][k].set_title(f"{n}\n{r['spp']} spp, {r['seconds']:.2f} s", fontsize=8)
-        rel = np.abs(lum(img) - lum(ref_img)) / (np.abs(lum(ref_img)) + 1e-2)
-        ax[1][k].imshow(rel[y0:y1, x0:x1], cmap="inferno", vmin=0.0, vmax=1.0)
-        ax[1][k].set_title(f"relMSE {r['relmse']:.2e}", fontsize=8)
-        for a in (ax[0][k], ax[1][k]):
-            a.axis("off")
-    fig.suptitle(f"{scene}: {title} (bottom: relative error, 0..1)", fontsize=10)
+        ax[i][j].imshow(tonemap(img[y0:y1]), interpolation="nearest")
+        ax[i][j].set_title(f"{n}\n{r['spp']} spp, {r['seconds']:.2f} s", fontsize=7)
+        rel = np.abs(lum(img) - ref_l) / (np.abs(ref_l) + 1e-2)
+        ax[i + 1][j].imshow(rel[y0:y1], cmap="inferno", vmin=0.0, vmax=1.0, interpolation="nearest")
+        ax[i + 1][j].set_title(f"relMSE {r['relmse']:.2e}", fontsize=7)
+    fig.suptitle(f"{scene}: {title} (below each: relative error, black 0 .. yellow 1)", fontsize=9)
     fig.tight_layout()
     path = outdir / f"{scene}-{title.replace(' ', '-')}.png"
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path.name
 
 
 def talk_table(rows):
-    methods = by_method(rows)
-    lines = ["| method | " + " | ".join(f"{s} spp ours / talk" for s in TALK_SPP) +
-             " | ours per extra sample (ms) | talk per extra sample (ms) |",
-             "|---|" + "---|" * (len(TALK_SPP) + 2)]
+    methods = by_key([r for r in rows if r.get("device", "cpu") == "cpu"])
+    lines = ["| method | " + " | ".join(f"{s} spp ours / talk (s)" for s in TALK_SPP) +
+             " | ours ms per spp | ours ns per pixel-sample | talk ms per spp |",
+             "|---|" + "---|" * (len(TALK_SPP) + 3)]
     ours_by = {}
+    pixels = None
     for label, (name, talk) in TALK.items():
         rs = {r["spp"]: r["seconds"] for r in methods.get(name, [])}
+        for r in methods.get(name, []):
+            pixels = pixels or r.get("pixels")
         ours_by[label] = rs
         cells = [f"{rs[s]:.2f} / {t}" if s in rs else f"- / {t}" for s, t in zip(TALK_SPP, talk)]
-        ours_slope = f"{(rs[256] - rs[4]) / 252 * 1e3:.2f}" if 4 in rs and 256 in rs else "-"
+        slope = (rs[256] - rs[4]) / 252 if 4 in rs and 256 in rs else None
+        ours_slope = f"{slope * 1e3:.1f}" if slope is not None else "-"
+        ours_ns = f"{slope / pixels * 1e9:.0f}" if slope is not None and pixels else "-"
         talk_slope = (talk[3] - talk[0]) / 252 * 1e3
-        lines.append(f"| {label} | " + " | ".join(cells) + f" | {ours_slope} | {talk_slope:.1f} |")
+        lines.append(f"| {label} (`{name}`) | " + " | ".join(cells) +
+                     f" | {ours_slope} | {ours_ns} | {talk_slope:.1f} |")
     lines.append("")
-    ratio = []
-    for s_i, s in enumerate(TALK_SPP):
-        u, b = ours_by["HT unbiased"].get(s), ours_by["HT biased"].get(s)
-        talk_r = TALK["HT biased"][1][s_i] / TALK["HT unbiased"][1][s_i]
-        ratio.append(f"{s} spp: ours {b / u:.2f}, talk {talk_r:.2f}" if u and b else f"{s} spp: talk {talk_r:.2f}")
-    lines.append("Biased / unbiased time ratio: " + "; ".join(ratio) + ".")
+    for num, den in (("HT biased", "HT unbiased"), ("HT+Vis biased", "HT unbiased"), ("HT+Vis biased", "HT biased")):
+        parts = []
+        for i, s in enumerate(TALK_SPP):
+            u, b = ours_by[den].get(s), ours_by[num].get(s)
+            tr = TALK[num][1][i] / TALK[den][1][i]
+            parts.append(f"{s} spp: ours {b / u:.2f}, talk {tr:.2f}" if u and b else f"{s} spp: talk {tr:.2f}")
+        lines.append(f"- {num} / {den} time: " + "; ".join(parts) + ".")
+    lines.append("")
+    lines.append("Each method's time relative to HT unbiased at the same spp (ours / talk):")
+    lines.append("")
+    lines.append("| method | " + " | ".join(f"{s} spp" for s in TALK_SPP) + " |")
+    lines.append("|---|" + "---|" * len(TALK_SPP))
+    for label, (name, talk) in TALK.items():
+        cells = []
+        for i, s in enumerate(TALK_SPP):
+            u, o = ours_by["HT unbiased"].get(s), ours_by[label].get(s)
+            tr = talk[i] / TALK["HT unbiased"][1][i]
+            cells.append(f"{o / u:.2f} / {tr:.2f}" if u and o else f"- / {tr:.2f}")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
-def stress_section(stress_json, htrender, tmp, outdir):
-    data = json.loads(Path(stress_json).read_text())
+def devices_table(rows):
+    """Wall and GPU time of every method on every device, side by side."""
+    devices = sorted({r["device"] for r in rows}, key=lambda d: (d != "cpu", d))
+    if len(devices) < 2 and all(r.get("gpu_seconds") is None for r in rows):
+        return None
+    spps = sorted({r["spp"] for r in rows})
+    methods = []
+    for r in rows:
+        if r["method"] not in methods:
+            methods.append(r["method"])
+    head = ["method", "spp"] + [f"{d} wall s" for d in devices] + \
+        [f"{d} timestamps s" for d in devices if d != "cpu"] + [f"{d} relMSE" for d in devices]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for m in methods:
+        for s in spps:
+            got = {r["device"]: r for r in rows if r["method"] == m and r["spp"] == s}
+            if len(got) < 2:
+                continue
+            cells = [m, str(s)]
+            cells += [f"{got[d]['seconds']:.3f}" if d in got else "-" for d in devices]
+            cells += [f"{got[d]['gpu_seconds']:.3f}" if d in got and got[d].get("gpu_seconds") is not None else "-"
+                      for d in devices if d != "cpu"]
+            cells += [fmt_e(got[d]["relmse"]) if d in got else "-" for d in devices]
+            lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) if len(lines) > 2 else None
+
+
+def findings(rows):
+    """The headline sentence: efficiency of ht-vis against mis, variance of ht-vis against oracle at 16 spp."""
+    cpu = [r for r in rows if r.get("device", "cpu") == "cpu"]
+    get = lambda m, s: next((r for r in cpu if r["method"] == m and r["spp"] == s), None)  # noqa: E731
+    out = []
+    effs = []
+    for s in sorted({r["spp"] for r in cpu}):
+        a, b = get("ht-vis", s), get("mis", s)
+        if a and b and math.isfinite(efficiency(a)) and math.isfinite(efficiency(b)):
+            effs.append((s, efficiency(a) / efficiency(b), b["relmse"] / a["relmse"], a["seconds"] / b["seconds"]))
+    if effs:
+        geo = math.exp(statistics.mean(math.log(e[1]) for e in effs))
+        out.append("Efficiency (1 / (relMSE x time)) of `ht-vis` against `mis`: " +
+                   ", ".join(f"{e[1]:.2f}x at {e[0]} spp (relMSE {1 / e[2]:.2f}x and time {e[3]:.2f}x mis's)"
+                             for e in effs) + f"; geometric mean {geo:.2f}x.")
+    a, o = get("ht-vis", 16), get("oracle", 16)
+    if a and o:
+        out.append(f"At 16 spp `ht-vis` has {a['relmse'] / o['relmse']:.2f}x the relMSE of `oracle`, the brute-force "
+                   f"product env x BRDF x visibility (relMSE {a['relmse']:.2e} against {o['relmse']:.2e}; "
+                   f"render time {a['seconds']:.2f} s against {o['seconds']:.2f} s).")
+    return " ".join(out)
+
+
+def floor_section(data):
+    """ht-vis (and the others of the run) against oracle, the brute-force product, at equal spp."""
+    rows = [r for r in data["results"] if r.get("device", "cpu") == "cpu"]
+    md = ["## Variance floor: against the brute-force product", ""]
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        srows = [r for r in rows if r["scene"] == scene]
+        info = next((v for k, v in data["references"].items() if Path(k).stem == scene), {})
+        for spp in sorted({r["spp"] for r in srows}):
+            o = next((r for r in srows if r["method"] == "oracle" and r["spp"] == spp), None)
+            if not o:
+                continue
+            others = [r for r in srows if r["spp"] == spp and r["method"] != "oracle"]
+            md += [f"{scene} at {info.get('width')}x{info.get('height')}, {spp} spp, side by side in one run "
+                   f"(`oracle`: env x BRDF x visibility tabulated per shading point at HEALPix "
+                   f"`{data.get('extra') or '--oracle-order 5'}` and sampled exactly, a floor only as fine as that "
+                   f"table; `mis` takes two directions per spp).", "",
+                   "| method | relMSE | relMSE / oracle's | time s | time / oracle's |", "|---|---|---|---|---|",
+                   f"| oracle | {o['relmse']:.2e} | 1 | {o['seconds']:.2f} | 1 |"]
+            for r in others:
+                md.append(f"| {r['method']} | {r['relmse']:.2e} | {r['relmse'] / o['relmse']:.2f} | "
+                          f"{r['seconds']:.2f} | {r['seconds'] / o['seconds']:.3f} |")
+            a = next((r for r in others if r["method"] == "ht-vis"), None)
+            if a:
+                md += ["", f"**At {spp} spp `ht-vis` has {a['relmse'] / o['relmse']:.2f}x the relMSE of `oracle` "
+                       f"({a['relmse']:.2e} against {o['relmse']:.2e}) in {a['seconds'] / o['seconds']:.3f}x its "
+                       f"render time.**"]
+            md.append("")
+    return md
+
+
+def scene_section(scene, info, srows, bench_dir, htrender, tmp, outdir, skipped):
+    md = [f"## {scene}", "",
+          f"Reference: {info['method']} at {info['spp']} spp, {info['width']}x{info['height']}, residual RMSE "
+          f"about {info['residual_rmse']:.4f} (relMSE {info['residual_relmse']:.1e}).", ""]
+    f = findings(srows)
+    if f:
+        md += [f"**{f}**", ""]
+    md += [f"![charts]({charts(scene, srows, outdir)})", ""]
+    ref_img = read_exr(htrender, bench_dir / info["file"], tmp)
+    images = {r["file"]: read_exr(htrender, bench_dir / r["file"], tmp) for r in srows
+              if (bench_dir / r["file"]).exists()}
+    cpu = by_key([r for r in srows if r.get("device", "cpu") == "cpu"])
+    spps = sorted({r["spp"] for r in srows})
+    eq_spp = 16 if 16 in spps else spps[len(spps) // 2]
+    g = image_grid(scene, [(n, next((r for r in rs if r["spp"] == eq_spp), None)) for n, rs in cpu.items()],
+                   ref_img, images, outdir, "equal spp")
+    if g:
+        md += [f"![equal spp]({g})", "", f"Every method at {eq_spp} spp (cpu).", ""]
+    times = sorted(r["seconds"] for r in srows if r["spp"] == eq_spp and r.get("device", "cpu") == "cpu")
+    if times:
+        budget = statistics.median(times)
+        chosen = [(n, min(rs, key=lambda r: abs(math.log(r["seconds"] / budget)))) for n, rs in cpu.items()
+                  if n != "oracle"]
+        g = image_grid(scene, chosen, ref_img, images, outdir, "equal time")
+        if g:
+            md += [f"![equal time]({g})", "",
+                   f"Equal time: for each method the spp whose render time is closest to {budget:.2f} s (the median "
+                   f"time at {eq_spp} spp).", ""]
+    md += ["| method | device | spp | wall s | gpu s | samples/px | RMSE | relMSE | efficiency | fireflies |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in srows:
+        g = f"{r['gpu_seconds']:.3f}" if r.get("gpu_seconds") is not None else "-"
+        md.append(f"| {r['method']} | {r['device']} | {r['spp']} | {r['seconds']:.3f} | {g} | "
+                  f"{r['samples_per_pixel']:.1f} | {r['rmse']:.4f} | {r['relmse']:.2e} | {efficiency(r):.3g} | "
+                  f"{r.get('fireflies', '-')} |")
+    md.append("")
+    sk = [s for s in skipped if s["scene"] == scene]
+    if sk:
+        md.append("Not measured: " + "; ".join(
+            f"{s['method']} on {s['device']}" + (f" at {s['spp']} spp" if "spp" in s else "") + f" ({s['reason']})"
+            for s in sk) + ".")
+        md.append("")
+    dt = devices_table(srows)
+    if dt:
+        md += ["### Devices side by side", "",
+               "Wall time is what the comparison uses; the GPU time comes from timestamp queries around the "
+               "dispatches (on lavapipe the \"GPU\" is the same CPU).", "", dt, ""]
+    md += ["### The talk's timing table (slide 52) next to ours", "",
+           "Talk: Core 2 Duo 2.4 GHz, one core, its own scene and resolution. Ours: this machine, every core, "
+           f"this scene at {info['width']}x{info['height']}, cpu. Compare the shapes and the ratios, not the "
+           "absolute times. Cost per sample: the slope between 4 and 256 spp.", "", talk_table(srows), ""]
+    return md
+
+
+def stress_section(data, outdir):
     rows = data["results"]
     scenes = sorted({r["scene"] for r in rows})
-    out = ["## Stress scenes: where methods fail", "",
-           "relMSE at equal time (log-log interpolation between spp points; `-` where a method's times do not "
-           "reach the common budget), fireflies = pixels beyond 10 robust sigma of the error at the largest spp. "
-           "**bold**: the best; *failing*: more than 10x the best relMSE.", ""]
+    spps = sorted({r["spp"] for r in rows})
+    md = ["## Stress scenes: where methods fail", "",
+          "relMSE at equal time: each method's relMSE carried to the scene's time budget (the median render time "
+          f"of all methods at {spps[len(spps) // 2]} spp) by log-log interpolation between its spp points, or as "
+          "relMSE x time / budget where it has one point (exact for unbiased methods). **bold**: the best; "
+          f"**FAIL**: more than {FAIL_FACTOR:g}x the best unbiased method (the `-biased` ones can win at a low "
+          f"budget without converging). Below: fireflies, pixels whose error exceeds "
+          f"{data.get('firefly_sigmas', 10):g} robust sigma of the image's error, at the largest spp.", ""]
+    methods = []
+    for r in rows:
+        if key(r) not in methods:
+            methods.append(key(r))
+    at, ff, budgets = {}, {}, {}
     for scene in scenes:
         srows = [r for r in rows if r["scene"] == scene]
-        methods = by_method(srows)
-        t16 = sorted(r["seconds"] for r in srows if r["spp"] == 16)
-        budget = t16[len(t16) // 2]
-        ref_file = next(v["file"] for k, v in data["references"].items() if Path(k).stem == scene)
-        ref_img = read_exr(htrender, ref_file, tmp)
-        at = {n: interp_at_time(rs, budget) for n, rs in methods.items()}
-        best = min((v for v in at.values() if v), default=None)
-        out.append(f"### {scene} (budget {budget:.2f} s)")
-        out.append("")
-        out.append("| method | relMSE at budget | relMSE at 16 spp | fireflies |")
-        out.append("|---|---|---|---|")
-        for n, rs in methods.items():
-            v = at[n]
-            mark = "-" if v is None else (f"**{v:.2e}**" if v == best else
-                                          (f"*{v:.2e} failing*" if best and v > 10 * best else f"{v:.2e}"))
-            r16 = next((r for r in rs if r["spp"] == 16), None)
-            last = rs[-1]
-            ff = fireflies(read_exr(htrender, last["file"], tmp), ref_img) if Path(last["file"]).exists() else "-"
-            out.append(f"| {n} | {mark} | {r16['relmse']:.2e} |" if r16 else f"| {n} | {mark} | - |")
-            out[-1] += f" {ff} |"
-        out.append("")
-    return "\n".join(out)
+        mid = spps[len(spps) // 2]
+        budgets[scene] = statistics.median(r["seconds"] for r in srows if r["spp"] == mid)
+        for n, rs in by_key(srows).items():
+            at[scene, n] = interp_at_time(rs, budgets[scene])
+            ff[scene, n] = rs[-1].get("fireflies")
+    head = "| method | " + " | ".join(scenes) + " | scenes failed |"
+    md += [head, "|---|" + "---|" * (len(scenes) + 1)]
+    best = {s: min((v for (sc, _), v in at.items() if sc == s and v), default=None) for s in scenes}
+    # Failing is measured against the best consistent method: a biased one can win at low spp without converging.
+    best_u = {s: min((v for (sc, n), v in at.items() if sc == s and v and "biased" not in n), default=None)
+              for s in scenes}
+    failures = {}
+    for n in methods:
+        cells, nfail = [], 0
+        for s in scenes:
+            v = at.get((s, n))
+            if v is None:
+                cells.append("-")
+            elif v == best[s]:
+                cells.append(f"**{v:.2e}**")
+            elif best_u[s] and v > FAIL_FACTOR * best_u[s]:
+                cells.append(f"{v:.2e} **FAIL**")
+                nfail += 1
+                failures.setdefault(s, []).append(n)
+            else:
+                cells.append(f"{v:.2e}")
+        md.append(f"| {n} | " + " | ".join(cells) + f" | {nfail} |")
+    md.append("| *budget (s)* | " + " | ".join(f"{budgets[s]:.3f}" for s in scenes) + " | |")
+    md += ["", "Fireflies:", "", head.replace(" scenes failed |", ""), "|---|" + "---|" * len(scenes)]
+    for n in methods:
+        md.append(f"| {n} | " + " | ".join(str(ff.get((s, n), "-")) if ff.get((s, n)) is not None else "-"
+                                           for s in scenes) + " |")
+    md.append("")
+    if failures:
+        md.append("Failing: " + "; ".join(f"{s}: {', '.join(ns)}" for s, ns in failures.items()) + ".")
+        md.append("")
+    sk = data.get("skipped", [])
+    if sk:
+        md.append("Not measured: " + "; ".join(
+            f"{s['scene']} {s['method']} on {s['device']} ({s['reason']})" for s in sk) + ".")
+        md.append("")
+    return md
+
+
+def scaling_section(data, outdir):
+    rows = data["results"]
+    md = ["## Scaling", "",
+          f"`tools/scaling.py` on {data['scene']}, device {data['device']}, median of {data['runs']} run(s); the "
+          f"spp and Nside sweeps at {data['width']}x{data['height']}, the Nside and size sweeps at "
+          f"{data['sweep_spp']} spp. Render time is the render stage alone (wall); setup is reported apart.", ""]
+    sweeps = [s for s in ("spp", "nside", "size") if any(r["sweep"] == s for r in rows)]
+    if sweeps:
+        fig, ax = plt.subplots(1, len(sweeps), figsize=(5.2 * len(sweeps), 4.0), squeeze=False)
+        labels = {"spp": "samples per pixel", "nside": "environment Nside", "size": "image pixels"}
+        for a, s in zip(ax[0], sweeps):
+            srows = [r for r in rows if r["sweep"] == s]
+            for m in dict.fromkeys(r["method"] for r in srows):
+                mr = sorted((r for r in srows if r["method"] == m), key=lambda r: r["x"])
+                a.loglog([r["x"] for r in mr], [r["seconds"] for r in mr], "o-", label=m, ms=4)
+            if s == "nside":
+                mr = sorted((r for r in srows if r["method"] == srows[0]["method"]), key=lambda r: r["x"])
+                a.loglog([r["x"] for r in mr], [r["environment"] for r in mr], "k:", label="environment setup")
+            a.set_xlabel(labels[s])
+            a.set_ylabel("seconds")
+            a.set_title(f"time against {labels[s]}")
+            a.grid(True, which="both", alpha=0.3)
+            a.legend(fontsize=7)
+        fig.tight_layout()
+        fig.savefig(outdir / "scaling.png", dpi=DPI)
+        plt.close(fig)
+        md += ["![scaling](scaling.png)", ""]
+        for s in sweeps:
+            srows = [r for r in rows if r["sweep"] == s]
+            xs = sorted({r["x"] for r in srows})
+            ms = list(dict.fromkeys(r["method"] for r in srows))
+            md += [f"| {s} | " + " | ".join(ms) + (" | environment s |" if s == "nside" else " |"),
+                   "|---|" + "---|" * (len(ms) + (1 if s == "nside" else 0))]
+            for x in xs:
+                cells = []
+                for m in ms:
+                    r = next((r for r in srows if r["x"] == x and r["method"] == m), None)
+                    cells.append(f"{r['seconds']:.3f}" if r else "-")
+                env = ""
+                if s == "nside":
+                    env = f" {statistics.median(r['environment'] for r in srows if r['x'] == x):.3f} |"
+                xl = f"{x} ({next(r for r in srows if r['x'] == x)['width']}x" \
+                     f"{next(r for r in srows if r['x'] == x)['height']})" if s == "size" else str(x)
+                md.append(f"| {xl} | " + " | ".join(cells) + " |" + env)
+            md.append("")
+            # Growth between the extreme points: time ratio against x ratio (1.0 = linear).
+            for m in ms:
+                mr = sorted((r for r in srows if r["method"] == m), key=lambda r: r["x"])
+                if len(mr) >= 2 and mr[0]["seconds"] > 0 and mr[-1]["x"] > mr[0]["x"]:
+                    k = math.log(mr[-1]["seconds"] / mr[0]["seconds"]) / math.log(mr[-1]["x"] / mr[0]["x"])
+                    md.append(f"- {m}: time grows as {s}^{k:.2f} from {mr[0]['x']} to {mr[-1]['x']} "
+                              f"({mr[0]['seconds']:.3f} s to {mr[-1]['seconds']:.3f} s).")
+            md.append("")
+    tree = [r for r in rows if r["sweep"] == "tree"]
+    if tree:
+        md += ["### Environment setup: load / resample / trees", "",
+               "The environment stage of `htrender render --stats` (`seconds.environment_load`, "
+               "`environment_resample`, `environment_trees`): reading and checking the equirectangular EXR, "
+               "resampling it into HEALPix (16 points per pixel), building the max/avg tree of its luminance. "
+               "Maps generated by `make_env sky-sun`.", "",
+               "| map | Nside | load s | resample s | trees s | environment total s |", "|---|---|---|---|---|---|"]
+        for r in tree:
+            md.append(f"| {r.get('map', '?')} | {r['nside']} | {r['environment_load']:.3f} | "
+                      f"{r['environment_resample']:.3f} | {r['environment_trees']:.4f} | {r['environment']:.3f} |")
+        md.append("")
+    return md
 
 
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--bench", default=str(ROOT / "out" / "bench"), help="folder with results.json of tools/bench.py")
     p.add_argument("--stress", help="folder with results.json of a bench run over the stress scenes")
+    p.add_argument("--scaling", help="folder with scaling.json of tools/scaling.py")
+    p.add_argument("--floor", help="folder with results.json of a bench run with oracle (the variance floor)")
+    p.add_argument("--command", default="tools/make-report.sh", help="the command named as the way to regenerate")
     p.add_argument("--htrender", default=str(ROOT / "build" / "htrender"))
     p.add_argument("--out", default=str(ROOT / "docs" / "report"))
     args = p.parse_args()
     outdir = Path(args.out)
     outdir.mkdir(parents=True, exist_ok=True)
+    for old in outdir.glob("*.png"):
+        old.unlink()
     tmp = outdir / ".tmp"
     tmp.mkdir(exist_ok=True)
 
-    bench = json.loads((Path(args.bench) / "results.json").read_text())
+    bench_dir = Path(args.bench)
+    bench = json.loads((bench_dir / "results.json").read_text())
     rows = bench["results"]
     for r in rows:
-        r["file"] = str(Path(args.bench) / f"{r['scene']}-{r['method']}-{r['spp']}.exr")
+        info = next((v for k, v in bench["references"].items() if Path(k).stem == r["scene"]), {})
+        r["pixels"] = info.get("width", 0) * info.get("height", 0)
     md = ["# htrender: error against time", "",
           f"Machine: {bench['machine']['cpu']}, {bench['machine']['cores']} cores ({bench['machine']['system']}); "
-          f"build {bench['build'].get('type', '?')}; device {bench['device']}; median of {bench['runs']} runs "
-          f"after a warm-up. Regenerate with `tools/bench.py` then `tools/report.py`.", ""]
+          f"build {bench['build'].get('type', '?')} {bench['build'].get('version', '')}; devices "
+          f"{', '.join(bench.get('devices', [bench.get('device', 'cpu')]))}; the fastest of {bench['runs']} timed "
+          f"run(s) per point on the cpu, {bench.get('gpu_runs', bench['runs'])} on other devices, after a warm-up. Every compared number comes from one run of the tools, methods side by side. "
+          f"Regenerate with `{args.command}`.", ""]
     for scene_path, info in bench["references"].items():
         scene = Path(scene_path).stem
         srows = [r for r in rows if r["scene"] == scene]
-        md += [f"## {scene}", "",
-               f"Reference: {info['method']} at {info['spp']} spp, {info['width']}x{info['height']}, residual RMSE "
-               f"about {info['residual_rmse']:.4f} (relMSE {info['residual_relmse']:.1e}).", "",
-               f"![charts]({charts(scene, srows, outdir)})", ""]
-        ref_img = read_exr(args.htrender, info["file"], tmp)
-        images = {r["file"]: read_exr(args.htrender, r["file"], tmp) for r in srows if Path(r["file"]).exists()}
-        g = image_grid(scene, srows, ref_img, images, outdir, "equal spp", lambda rs: next(
-            (r for r in rs if r["spp"] == 16), None))
-        if g:
-            md += [f"![equal spp]({g})", ""]
-        t16 = sorted(r["seconds"] for r in srows if r["spp"] == 16)
-        if t16:
-            budget = t16[len(t16) // 2]
-            g = image_grid(scene, srows, ref_img, images, outdir, "equal time",
-                           lambda rs: min(rs, key=lambda r: abs(math.log(r["seconds"] / budget))))
-            if g:
-                md += [f"![equal time]({g}) (for each method, the spp whose time is closest to {budget:.2f} s)", ""]
-        md += ["| method | spp | time s | samples/px | RMSE | relMSE | efficiency |", "|---|---|---|---|---|---|---|"]
-        for r in srows:
-            eff = 1.0 / (r["relmse"] * r["seconds"]) if r["relmse"] > 0 and r["seconds"] > 0 else float("inf")
-            md.append(f"| {r['method']} | {r['spp']} | {r['seconds']:.3f} | {r['samples_per_pixel']:.1f} | "
-                      f"{r['rmse']:.4f} | {r['relmse']:.2e} | {eff:.3g} |")
-        md += ["", "### The talk's timing table (slide 52) next to ours", "",
-               "Talk: Core 2 Duo 2.4 GHz, one core, its own scene. Ours: this machine, all cores, this scene; "
-               "compare shapes and ratios, not absolute times.", "", talk_table(srows), ""]
+        md += scene_section(scene, info, srows, bench_dir, args.htrender, tmp, outdir, bench.get("skipped", []))
+    if args.floor:
+        md += floor_section(json.loads((Path(args.floor) / "results.json").read_text()))
     if args.stress:
-        stress = json.loads((Path(args.stress) / "results.json").read_text())
-        for r in stress["results"]:
-            r["file"] = str(Path(args.stress) / f"{r['scene']}-{r['method']}-{r['spp']}.exr")
-        (tmp / "stress.json").write_text(json.dumps(stress))
-        md.append(stress_section(tmp / "stress.json", args.htrender, tmp, outdir))
+        md += stress_section(json.loads((Path(args.stress) / "results.json").read_text()), outdir)
+    if args.scaling:
+        md += scaling_section(json.loads((Path(args.scaling) / "scaling.json").read_text()), outdir)
     (outdir / "README.md").write_text("\n".join(md) + "\n")
     for f in tmp.iterdir():
         f.unlink()

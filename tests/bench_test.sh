@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# The bench and report tooling end to end on a tiny configuration, so that it
+# keeps working: tools/bench.py (two methods, 1 and 4 spp, 32x16, one run, a
+# low-spp reference, on a copy of spheres.json with a small environment
+# Nside), tools/scaling.py (one short sweep) and tools/report.py into a
+# temporary folder; then checks that the outputs exist and are sane.
+# Usage: bench_test.sh HTRENDER SOURCE_DIR
+set -euo pipefail
+htrender=$(realpath "$1")
+src=$(realpath "$2")
+py=/usr/bin/python3
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+$py - "$src/data/scenes/spheres.json" "$tmp/scene.json" <<'EOF'
+import json, sys
+from pathlib import Path
+scene = json.loads(Path(sys.argv[1]).read_text())
+env = scene["environment"]
+env["file"] = str((Path(sys.argv[1]).parent / env["file"]).resolve())
+env["nside"] = 64
+Path(sys.argv[2]).write_text(json.dumps(scene))
+EOF
+
+$py "$src/tools/bench.py" --htrender "$htrender" --scene "$tmp/scene.json" --methods mis,ht-vis --spp 1,4 \
+  --runs 1 --width 32 --height 16 --ref-spp 256 --out "$tmp/bench" 2> "$tmp/bench.log" ||
+  { cat "$tmp/bench.log"; exit 1; }
+$py "$src/tools/scaling.py" --htrender "$htrender" --scene "$tmp/scene.json" --methods mis --sweeps spp \
+  --spp 1,4 --width 16 --height 8 --out "$tmp/scaling" 2> "$tmp/scaling.log" ||
+  { cat "$tmp/scaling.log"; exit 1; }
+$py "$src/tools/report.py" --htrender "$htrender" --bench "$tmp/bench" --stress "$tmp/bench" \
+  --scaling "$tmp/scaling" --out "$tmp/report" 2> "$tmp/report.log" || { cat "$tmp/report.log"; exit 1; }
+
+$py - "$tmp" <<'EOF'
+import json, math, sys
+from pathlib import Path
+tmp = Path(sys.argv[1])
+def check(cond, what):
+    if not cond:
+        sys.exit(f"bench_test: FAILED: {what}")
+for f in ("bench/results.json", "bench/results.csv", "bench/results.md", "scaling/scaling.json",
+          "scaling/scaling.csv", "report/README.md", "report/scene-charts.png", "report/scaling.png"):
+    check((tmp / f).is_file() and (tmp / f).stat().st_size > 0, f"{f} exists")
+res = json.loads((tmp / "bench/results.json").read_text())
+rows = res["results"]
+check(len(rows) == 4, f"4 result rows, got {len(rows)}")
+check({(r["method"], r["spp"]) for r in rows} == {(m, s) for m in ("mis", "ht-vis") for s in (1, 4)}, "rows")
+for r in rows:
+    for k in ("rmse", "relmse", "seconds"):
+        check(math.isfinite(r[k]) and r[k] >= 0, f"{r['method']} {r['spp']} spp: {k} = {r[k]} finite")
+    check(r["rmse"] > 0, f"{r['method']} {r['spp']} spp: rmse > 0")
+    check(isinstance(r["fireflies"], int) and 0 <= r["fireflies"] <= 32 * 16, "fireflies counted")
+    check((tmp / "bench" / r["file"]).is_file(), f"{r['file']} kept")
+mis = {r["spp"]: r["rmse"] for r in rows if r["method"] == "mis"}
+check(mis[4] < mis[1], f"mis error falls from 1 to 4 spp ({mis[1]:.4f} -> {mis[4]:.4f})")
+ref = next(iter(res["references"].values()))
+check(math.isfinite(ref["residual_rmse"]) and ref["residual_rmse"] < mis[4], "reference residual below the 4 spp error")
+sc = json.loads((tmp / "scaling/scaling.json").read_text())["results"]
+check(len(sc) == 2 and all(r["seconds"] >= 0 and r["environment_trees"] >= 0 for r in sc), "scaling rows")
+md = (tmp / "report/README.md").read_text()
+for s in ("## scene", "slide 52", "Stress scenes", "## Scaling", "ht-vis"):
+    check(s in md, f"report mentions {s!r}")
+check(sum(f.stat().st_size for f in (tmp / "report").iterdir()) < 2_000_000, "report is small")
+check(not list((tmp / "report").glob("*.exr")), "no EXRs in the report")
+print("bench_test: ok")
+EOF
