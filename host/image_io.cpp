@@ -26,26 +26,6 @@ namespace ht {
 
 namespace {
 
-// Library messages sometimes span several lines; ours must stay on one.
-// Messages are one line of printable text: control characters (a newline
-// in a library's message, in a file name or a JSON key) are shown escaped.
-std::string oneLine(const std::string& s) {
-  std::string r;
-  r.reserve(s.size());
-  for (char c : s) {
-    if (c == '\n') {
-      r += "\\n";
-    } else if (c == '\r') {
-      r += "\\r";
-    } else if ((unsigned char)c < 0x20 || c == 0x7f) {
-      r += fmt::format("\\x{:02x}", (unsigned)(unsigned char)c);
-    } else {
-      r += c;
-    }
-  }
-  return r;
-}
-
 void checkImageDimensions(const std::string& path, long long width, long long height) {
   if (width <= 0 || height <= 0)
     throw Error(path + ": empty image (" + std::to_string(width) + "x" + std::to_string(height) + ")");
@@ -62,6 +42,23 @@ uint8_t encodeSrgb8(float linear) {
 }
 
 }  // namespace
+
+std::string oneLine(const std::string& s) {
+  std::string r;
+  r.reserve(s.size());
+  for (char c : s) {
+    if (c == '\n') {
+      r += "\\n";
+    } else if (c == '\r') {
+      r += "\\r";
+    } else if ((unsigned char)c < 0x20 || c == 0x7f) {
+      r += fmt::format("\\x{:02x}", (unsigned)(unsigned char)c);
+    } else {
+      r += c;
+    }
+  }
+  return r;
+}
 
 namespace {
 

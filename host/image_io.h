@@ -15,6 +15,9 @@ namespace ht {
 struct Error : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+// Messages are one line of printable text: control characters (a newline
+// in a library's message, in a file name or a JSON key) are shown escaped.
+std::string oneLine(const std::string& s);
 
 // Linear float RGB, row-major, top row first.
 struct ImageRGB {

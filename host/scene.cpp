@@ -125,25 +125,6 @@ Material parseMaterial(const Obj& m, const std::string& type) {
   return mat;
 }
 
-// Messages are one line of printable text: control characters (a newline
-// in a library's message, in a file name or a JSON key) are shown escaped.
-std::string oneLine(const std::string& s) {
-  std::string r;
-  r.reserve(s.size());
-  for (char c : s) {
-    if (c == '\n') {
-      r += "\\n";
-    } else if (c == '\r') {
-      r += "\\r";
-    } else if ((unsigned char)c < 0x20 || c == 0x7f) {
-      r += fmt::format("\\x{:02x}", (unsigned)(unsigned char)c);
-    } else {
-      r += c;
-    }
-  }
-  return r;
-}
-
 std::string lineColumn(const std::string& text, size_t byte) {
   size_t line = 1, col = 1;
   for (size_t i = 0; i < std::min(byte, text.size()); ++i) {

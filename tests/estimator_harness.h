@@ -11,11 +11,38 @@
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
+#include "environment.h"
 #include "healpix.h"
+#include "image_io.h"
 #include "integrator.h"
 #include "scene.h"
 
 namespace ht::test {
+
+// The sun of the test environments, and the direction mirroring it about +y.
+inline const glm::vec3 kSunDir = glm::normalize(glm::vec3(0.5f, 0.6f, 0.3f));
+inline glm::vec3 mirrorOf(glm::vec3 d) { return {-d.x, d.y, -d.z}; }
+
+#ifdef HT_TEST_DATA
+// data/env/sunrise.exr resampled at 2^order.
+inline Environment sunriseAt(int order) {
+  ImageRGB img = readExr(std::string(HT_TEST_DATA) + "/env/sunrise.exr");
+  sanitizeEnvironmentImage(img, "sunrise.exr");
+  return environmentFromEquirect(img, order, 0.0f, 1.0f);
+}
+#endif
+
+// A dim sky with a single bright pixel at kSunDir; `blackHalf` blacks out
+// the first half of the nested pixels (the northern faces and part of the
+// equator).
+inline Environment onePixelSun(int order, float background = 0.02f, bool blackHalf = false) {
+  std::vector<glm::vec3> px(healpix::pixelCount(order), glm::vec3(background));
+  if (blackHalf)
+    for (size_t p = 0; p < px.size() / 2; ++p) px[p] = glm::vec3(0.0f);
+  Environment probe = constantEnvironment(order, glm::vec3(1.0f));
+  px[probe.pixelOf(kSunDir)] = glm::vec3(2000.0f, 1800.0f, 1500.0f);
+  return environmentFromPixels(order, std::move(px));
+}
 
 // Two-sided normal quantile for the z-test: z such that P(|Z| > z) = alpha.
 inline double normalQuantileTwoSided(double alpha) {

@@ -31,28 +31,13 @@ namespace {
 constexpr int kEnvOrder = 5;  // Nside 32: brute force over all pixels stays cheap
 
 const Environment& sunrise() {
-  static const Environment env = [] {
-    ImageRGB img = readExr(std::string(HT_TEST_DATA) + "/env/sunrise.exr");
-    sanitizeEnvironmentImage(img, "sunrise.exr");
-    return environmentFromEquirect(img, kEnvOrder, 0.0f, 1.0f);
-  }();
+  static const Environment env = sunriseAt(kEnvOrder);
   return env;
 }
 
-const glm::vec3 kSunDir = glm::normalize(glm::vec3(0.5f, 0.6f, 0.3f));
-
-// A dim sky with a single bright pixel; `blackHalf` blacks out the first
-// half of the nested pixels (the northern faces and part of the equator).
 Environment onePixelSun(float background = 0.02f, bool blackHalf = false) {
-  std::vector<glm::vec3> px(healpix::pixelCount(kEnvOrder), glm::vec3(background));
-  if (blackHalf)
-    for (size_t p = 0; p < px.size() / 2; ++p) px[p] = glm::vec3(0.0f);
-  Environment probe = constantEnvironment(kEnvOrder, glm::vec3(1.0f));
-  px[probe.pixelOf(kSunDir)] = glm::vec3(2000.0f, 1800.0f, 1500.0f);
-  return environmentFromPixels(kEnvOrder, std::move(px));
+  return test::onePixelSun(kEnvOrder, background, blackHalf);
 }
-
-glm::vec3 mirrorOf(glm::vec3 d) { return {-d.x, d.y, -d.z}; }
 
 // Shading points on the plane y = 0 (normal +y) as in test_estimators.cpp:
 // a small sun with a glossy lobe, a sun shadowed by a sphere, an occluded

@@ -13,26 +13,12 @@ namespace {
 
 constexpr int kEnvOrder = 5;  // Nside 32: brute force over all pixels stays cheap
 
-Environment sunriseEnvironment() {
-  static const Environment env = [] {
-    ImageRGB img = readExr(std::string(HT_TEST_DATA) + "/env/sunrise.exr");
-    sanitizeEnvironmentImage(img, "sunrise.exr");
-    return environmentFromEquirect(img, kEnvOrder, 0.0f, 1.0f);
-  }();
+const Environment& sunriseEnvironment() {
+  static const Environment env = sunriseAt(kEnvOrder);
   return env;
 }
 
-const glm::vec3 kSunDir = glm::normalize(glm::vec3(0.5f, 0.6f, 0.3f));
-
-// A dim sky with a single bright HEALPix pixel.
-Environment onePixelSun(float background = 0.02f) {
-  std::vector<glm::vec3> px(healpix::pixelCount(kEnvOrder), glm::vec3(background));
-  Environment probe = constantEnvironment(kEnvOrder, glm::vec3(1.0f));
-  px[probe.pixelOf(kSunDir)] = glm::vec3(2000.0f, 1800.0f, 1500.0f);
-  return environmentFromPixels(kEnvOrder, std::move(px));
-}
-
-glm::vec3 mirrorOf(glm::vec3 d) { return {-d.x, d.y, -d.z}; }
+Environment onePixelSun(float background = 0.02f) { return test::onePixelSun(kEnvOrder, background); }
 
 // The baselines and unbiased HT. The biased variants and the competitors
 // (wis, tsis, ris) have their own tests; the brute-force oracle is too slow

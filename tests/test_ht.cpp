@@ -18,8 +18,6 @@ using namespace ht::test;
 
 namespace {
 
-const glm::vec3 kSunDir = glm::normalize(glm::vec3(0.5f, 0.6f, 0.3f));
-
 // Sky with a sun pixel and a black lower half, at a small resolution.
 Environment smallSky(int order) {
   std::vector<glm::vec3> px(healpix::pixelCount(order));
@@ -32,13 +30,6 @@ Environment smallSky(int order) {
   return environmentFromPixels(order, std::move(px), 20.0f);
 }
 
-Environment sunrise(int order) {
-  ImageRGB img = readExr(std::string(HT_TEST_DATA) + "/env/sunrise.exr");
-  sanitizeEnvironmentImage(img, "sunrise.exr");
-  return environmentFromEquirect(img, order, 0.0f, 1.0f);
-}
-
-glm::vec3 mirrorOf(glm::vec3 d) { return {-d.x, d.y, -d.z}; }
 
 std::vector<ShadingSetup> smallSetups(int order) {
   std::vector<ShadingSetup> s;
@@ -296,9 +287,9 @@ TEST(Ht, UnbiasedAgainstBruteForce) {
   setups.push_back(makeSetup("glossy-small-sun", smallSky(order), ggx(0.1f, glm::vec3(0.9f)), mirrorOf(kSunDir)));
   setups.push_back(makeSetup("sun-shadow", smallSky(order), lambert(0.8f), {0.0f, 1.0f, 0.3f},
                              {{2.0f * kSunDir, 0.4f, 0}}));
-  setups.push_back(makeSetup("grazing-sunrise", sunrise(order), ggx(0.25f, glm::vec3(0.95f)),
+  setups.push_back(makeSetup("grazing-sunrise", sunriseAt(order), ggx(0.25f, glm::vec3(0.95f)),
                              {std::sin(1.48f), std::cos(1.48f), 0.0f}));
-  setups.push_back(makeSetup("phong-sunrise-occluded", sunrise(order), phong(40.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
+  setups.push_back(makeSetup("phong-sunrise-occluded", sunriseAt(order), phong(40.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
                              {-0.4f, 0.6f, 0.3f}, {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}}));
   std::vector<glm::vec3> half(healpix::pixelCount(order), glm::vec3(1.0f));
   Environment probe = constantEnvironment(order, glm::vec3(1.0f));
@@ -335,8 +326,8 @@ TEST(Ht, UnbiasedAgainstBruteForce) {
 TEST(Ht, BiasedConvergesToUnbiased) {
   const int order = 5;
   std::vector<ShadingSetup> setups;
-  setups.push_back(makeSetup("diffuse-sunrise", sunrise(order), lambert(0.8f), {0.3f, 1.0f, 0.2f}));
-  setups.push_back(makeSetup("phong-sunrise", sunrise(order), phong(20.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
+  setups.push_back(makeSetup("diffuse-sunrise", sunriseAt(order), lambert(0.8f), {0.3f, 1.0f, 0.2f}));
+  setups.push_back(makeSetup("phong-sunrise", sunriseAt(order), phong(20.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
                              {-0.4f, 0.6f, 0.3f}));
   setups.push_back(makeSetup("glossy-sun", smallSky(order), ggx(0.2f, glm::vec3(0.9f)), mirrorOf(kSunDir)));
   const int ns[] = {4, 16, 64, 256};
