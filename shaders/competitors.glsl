@@ -370,23 +370,31 @@ uint sobolSecond(uint i) {
   return r;
 }
 
+// ScrambledSobol02::point: point i of the digitally shifted (0,2)-sequence
+// with random low bits, kept below 1.
+precise dvec2 scrambledSobol(uint i, uvec2 shift, inout uint rng) {
+  float jx = rngNext(rng);
+  float jy = rngNext(rng);
+  precise double ux = (double(bitfieldReverse(i) ^ shift.x) + double(jx)) * kTwoPowMinus32D;
+  precise double uy = (double(sobolSecond(i) ^ shift.y) + double(jy)) * kTwoPowMinus32D;
+  return dvec2(min(ux, kBelowOneD), min(uy, kBelowOneD));
+}
+
 // estimateTsis: `spp` points of one scrambled (0,2)-sequence through the two stages.
 vec3 estimateTsis(Shading sh, vec3 normal, vec3 wo, uint spp, inout uint rng, inout uint directions) {
   if (scene.envHasLight == 0u) return vec3(0.0);
   gTsisBase = (gl_GlobalInvocationID.y * pc.tileWidth + gl_GlobalInvocationID.x) * HT_TSIS_REGIONS;
   tsisPartition(normal, wo, sh.material);
   if (!(gTsisTotal > 0.0)) return vec3(0.0);
-  uint shiftX = rngNextUint(rng);
-  uint shiftY = rngNextUint(rng);
+  uvec2 shift;
+  shift.x = rngNextUint(rng);
+  shift.y = rngNextUint(rng);
   precise dvec3 sum = dvec3(0.0);
   for (uint i = 0u; i < spp; ++i) {
-    float jx = rngNext(rng);
-    float jy = rngNext(rng);
-    precise double ux = (double(bitfieldReverse(i) ^ shiftX) + double(jx)) * kTwoPowMinus32D;
-    precise double uy = (double(sobolSecond(i) ^ shiftY) + double(jy)) * kTwoPowMinus32D;
+    precise dvec2 u = scrambledSobol(i, shift, rng);
     uint pixel;
     vec3 dir;
-    double pdf = tsisWarp(min(ux, kBelowOneD), min(uy, kBelowOneD), pixel, dir);
+    double pdf = tsisWarp(u.x, u.y, pixel, dir);
     directions += 1u;
     if (!(pdf > 0.0)) continue;
     precise dvec3 est = dvec3(reflected(sh, dir, envRadiance(pixel))) / pdf;
@@ -503,18 +511,16 @@ vec3 estimateWis(Shading sh, vec3 normal, vec3 wo, uint spp, bool biased, inout 
   wisBuild(normal, wo, sh.material);
   if (!(gWisTotal > 0.0)) return vec3(0.0);
   double pixelSolidAngle = wisPixelSolidAngle(gWisOrder);
-  uint shiftX = rngNextUint(rng);
-  uint shiftY = rngNextUint(rng);
+  uvec2 shift;
+  shift.x = rngNextUint(rng);
+  shift.y = rngNextUint(rng);
   precise dvec3 sum = dvec3(0.0);
   for (uint i = 0u; i < spp; ++i) {
-    float jx = rngNext(rng);
-    float jy = rngNext(rng);
-    precise double ux = (double(bitfieldReverse(i) ^ shiftX) + double(jx)) * kTwoPowMinus32D;
-    precise double uy = (double(sobolSecond(i) ^ shiftY) + double(jy)) * kTwoPowMinus32D;
+    precise dvec2 u = scrambledSobol(i, shift, rng);
     uint pixel;
     double probability;
     vec3 dir;
-    double pdf = wisWarp(sh.material, min(ux, kBelowOneD), min(uy, kBelowOneD), pixel, probability, dir);
+    double pdf = wisWarp(sh.material, u.x, u.y, pixel, probability, dir);
     directions += 1u;
     if (!(probability > 0.0)) continue;
     precise dvec3 value;
