@@ -330,7 +330,7 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
   Impl& m = *impl_;
   if (!m.hasScene) throw Error("internal: GpuRenderer::render before setScene");
   if (!gpuSupportsMethod(s.method))
-    throw Error(fmt::format("method {} is not implemented on the GPU; use --device cpu", methodName(s.method)));
+    throw Error(fmt::format("method {} has no GPU version (it runs on the CPU reference only); use --device cpu", methodName(s.method)));
   m.usePipeline(uint32_t(s.method));
   const auto start = std::chrono::steady_clock::now();
 
