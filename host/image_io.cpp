@@ -22,6 +22,8 @@
 #include <OpenEXR/ImfVersion.h>
 #include <png.h>
 
+#include "sampling.h"
+
 namespace ht {
 
 namespace {
@@ -564,18 +566,22 @@ void writePng(const std::string& path, const ImageRGB& image, float exposure) {
 ImageError compareImages(const ImageRGB& ref, const ImageRGB& test) {
   ImageError e;
   e.pixels = ref.pixels.size();
-  double se = 0.0, rel = 0.0, absRel = 0.0;
-  for (size_t i = 0; i < ref.pixels.size(); ++i)
+  double se = 0.0, rel = 0.0, absRel = 0.0, lumRel = 0.0;
+  for (size_t i = 0; i < ref.pixels.size(); ++i) {
     for (int c = 0; c < 3; ++c) {
       double r = ref.pixels[i][c], d = double(test.pixels[i][c]) - r;
       se += d * d;
       rel += d * d / (r * r + 1e-2);
       absRel += std::abs(d) / (std::abs(r) + 1e-2);
     }
+    double r = luminance(ref.pixels[i]), d = double(luminance(test.pixels[i])) - r;
+    lumRel += d * d / (r * r + 1e-2);
+  }
   double n = 3.0 * double(std::max<uint64_t>(e.pixels, 1));
   e.rmse = std::sqrt(se / n);
   e.relMse = rel / n;
   e.meanAbsRelError = absRel / n;
+  e.luminanceRelMse = lumRel / double(std::max<uint64_t>(e.pixels, 1));
   return e;
 }
 

@@ -48,6 +48,7 @@ struct ImageError {
   double rmse = 0.0;             // sqrt(mean (t - r)^2)
   double relMse = 0.0;           // mean (t - r)^2 / (r^2 + 1e-2)
   double meanAbsRelError = 0.0;  // mean |t - r| / (|r| + 1e-2)
+  double luminanceRelMse = 0.0;  // relMse of the luminance alone: without colour noise
   uint64_t pixels = 0;
 };
 ImageError compareImages(const ImageRGB& ref, const ImageRGB& test);

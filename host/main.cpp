@@ -366,7 +366,7 @@ int main(int argc, char** argv) {
                                 test.height, ref.width, ref.height));
       ImageError e = compareImages(ref, test);
       nlohmann::json j = {{"rmse", e.rmse}, {"relmse", e.relMse}, {"mean_abs_rel_error", e.meanAbsRelError},
-                          {"pixels", e.pixels}};
+                          {"luminance_relmse", e.luminanceRelMse}, {"pixels", e.pixels}};
       std::printf("%s\n", j.dump().c_str());
       return 0;
     }

@@ -369,4 +369,31 @@ TEST_F(ImageIo, PngIsClampedSrgb) {
   EXPECT_EQ(got[1], 255);
 }
 
+// The error metrics by hand on two pixels: one scaled by 1.1, one whose
+// colour changes while its luminance does not (only the RGB metrics see it).
+TEST(ImageError, MatchesItsDefinitions) {
+  ht::ImageRGB ref, test;
+  ref.width = test.width = 2;
+  ref.height = test.height = 1;
+  ref.pixels = {{1.0f, 2.0f, 3.0f}, {0.5f, 0.5f, 0.5f}};
+  const float dr = 0.1f, db = -dr * 0.2126f / 0.0722f;  // luminance unchanged
+  test.pixels = {1.1f * ref.pixels[0], {0.5f + dr, 0.5f, 0.5f + db}};
+  ht::ImageError e = ht::compareImages(ref, test);
+  double se = 0.0, rel = 0.0, absRel = 0.0;
+  for (int i = 0; i < 2; ++i)
+    for (int c = 0; c < 3; ++c) {
+      double r = ref.pixels[i][c], d = double(test.pixels[i][c]) - r;
+      se += d * d;
+      rel += d * d / (r * r + 1e-2);
+      absRel += std::abs(d) / (std::abs(r) + 1e-2);
+    }
+  EXPECT_NEAR(e.rmse, std::sqrt(se / 6.0), 1e-7);
+  EXPECT_NEAR(e.relMse, rel / 6.0, 1e-7);
+  EXPECT_NEAR(e.meanAbsRelError, absRel / 6.0, 1e-7);
+  const double y = 0.2126 + 0.7152 * 2.0 + 0.0722 * 3.0;  // first pixel's luminance; the second's error is 0
+  EXPECT_NEAR(e.luminanceRelMse, (0.01 * y * y / (y * y + 1e-2) + 0.0) / 2.0, 1e-6);
+  EXPECT_GT(e.relMse, 2.0 * e.luminanceRelMse);
+  EXPECT_EQ(e.pixels, 2u);
+}
+
 }  // namespace

@@ -284,7 +284,7 @@ def main():
               "skipped": skipped}
     (outdir / "results.json").write_text(json.dumps(result, indent=2))
     cols = ["scene", "device", "method", "spp", "seconds", "gpu_seconds", "setup_seconds", "samples_per_pixel",
-            "rmse", "relmse", "mean_abs_rel_error", "fireflies", "device_name"]
+            "rmse", "relmse", "mean_abs_rel_error", "luminance_relmse", "fireflies", "device_name"]
     with open(outdir / "results.csv", "w") as f:
         f.write(",".join(cols) + "\n")
         for r in rows:
