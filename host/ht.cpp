@@ -95,6 +95,40 @@ const HtGeometry& htGeometry(int order) {
   return *g;
 }
 
+Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry) {
+  Cap c{axis, angle, std::cos(angle), {}, {}};
+  for (size_t l = 0; l < c.cosInside.size(); ++l) {
+    float rad = geometry.levelRadius[l];
+    c.cosInside[l] = angle > rad ? std::cos(angle - rad) : 2.0f;  // 2: never inside
+    c.cosOutside[l] = std::cos(std::min(kPi, angle + rad));
+  }
+  return c;
+}
+
+std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry) {
+  const Environment& env = scene.environment;
+  std::vector<Cap> caps;
+  auto addCap = [&](const glm::vec3& axis, float angle) { caps.push_back(makeCap(axis, angle, geometry)); };
+  // Caps shrink by a milliradian so that "inside" always means blocked.
+  // They are seen from where the shadow rays start: a hit point rounded
+  // to just below its own plane would otherwise see the sky as blocked.
+  constexpr float kMargin = 1e-3f;
+  const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
+  for (const Sphere& s : scene.spheres) {
+    glm::vec3 d = s.center - origin;
+    float dist = glm::length(d);
+    if (dist <= 0.0f) continue;
+    float angle = std::asin(std::min(1.0f, s.radius / dist)) - kMargin;
+    if (angle > 0.0f) addCap(glm::normalize(toFloat(env.toHealpixFrame(d / dist))), angle);
+  }
+  for (const Plane& p : scene.planes) {
+    float side = glm::dot(origin - p.point, p.normal);
+    glm::vec3 below = side >= 0.0f ? -p.normal : p.normal;
+    addCap(glm::normalize(toFloat(env.toHealpixFrame(below))), 0.5f * kPi - kMargin);
+  }
+  return caps;
+}
+
 HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
     : scene(sc),
       env(sc.environment),
@@ -114,34 +148,7 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
     tableX = glm::length(tangent) > 1e-6f ? glm::normalize(tangent) : frame.s;
     tableY = glm::cross(n, tableX);
   }
-  auto addCap = [&](const glm::vec3& axis, float angle) {
-    Cap c{axis, angle, std::cos(angle), {}, {}};
-    for (size_t l = 0; l < c.cosInside.size(); ++l) {
-      float rad = geometry.levelRadius[l];
-      c.cosInside[l] = angle > rad ? std::cos(angle - rad) : 2.0f;  // 2: never inside
-      c.cosOutside[l] = std::cos(std::min(kPi, angle + rad));
-    }
-    caps.push_back(c);
-  };
-  if (options.visibility) {
-    // Caps shrink by a milliradian so that "inside" always means blocked.
-    // They are seen from where the shadow rays start: a hit point rounded
-    // to just below its own plane would otherwise see the sky as blocked.
-    constexpr float kMargin = 1e-3f;
-    const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
-    for (const Sphere& s : scene.spheres) {
-      glm::vec3 d = s.center - origin;
-      float dist = glm::length(d);
-      if (dist <= 0.0f) continue;
-      float angle = std::asin(std::min(1.0f, s.radius / dist)) - kMargin;
-      if (angle > 0.0f) addCap(glm::normalize(toFloat(env.toHealpixFrame(d / dist))), angle);
-    }
-    for (const Plane& p : scene.planes) {
-      float side = glm::dot(origin - p.point, p.normal);
-      glm::vec3 below = side >= 0.0f ? -p.normal : p.normal;
-      addCap(glm::normalize(toFloat(env.toHealpixFrame(below))), 0.5f * kPi - kMargin);
-    }
-  }
+  if (options.visibility) caps = visibilityCaps(scene, sp, geometry);
   estimateBudget();
 }
 

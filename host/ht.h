@@ -68,6 +68,11 @@ struct Cap {
   std::array<float, 32> cosInside, cosOutside;
 };
 
+Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry);
+// The caps of every sphere and plane as seen from the shading point's
+// shadow-ray origin.
+std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry);
+
 struct HtSample {
   glm::vec3 dir;       // world space
   uint64_t pixel;      // environment pixel (leaf) holding the sample

@@ -1,88 +1,175 @@
 #include "oracle.h"
 
 #include <algorithm>
+#include <array>
 #include <vector>
 
 #include "healpix.h"
+#include "ht.h"
 #include "sampling.h"
 #include "tree.h"
 
 namespace ht {
+namespace {
+
+// Levels below the environment's pixels the refinement goes on: the
+// environment is constant there but a glossy lobe or a shadow's edge is not.
+constexpr int kVirtualLevels = 3;
+// Share of every choice kept for unresolved nodes.
+constexpr double kUnresolvedShare = 0.002;
+
+// The three densities every choice mixes.
+struct Weights {
+  double product = 0.0;     // env x f cos x V at the points
+  double unresolved = 0.0;  // env where no point is lit yet the node is not surely dark
+  double env = 0.0;         // env
+  bool belowSurface = false;  // unresolved with every point below the surface
+  Weights& operator+=(const Weights& o) {
+    product += o.product;
+    unresolved += o.unresolved;
+    env += o.env;
+    return *this;
+  }
+};
+
+// Probability of a choice with weights w among alternatives summing to `sum`:
+// the product, but for a small share kept for the nodes whose points all
+// missed the light (a shadow's edge, the horizon, a lobe between points), so
+// that every lit direction keeps a non-zero density.
+double share(const Weights& w, const Weights& sum) {
+  double p = 0.0, left = 1.0;
+  if (sum.unresolved > 0.0) {
+    p += kUnresolvedShare * w.unresolved / sum.unresolved;
+    left -= kUnresolvedShare;
+  }
+  return p + left * (sum.product > 0.0 ? w.product / sum.product : w.env / sum.env);
+}
+
+struct Point {
+  const Scene& scene;
+  const ShadingPoint& sp;
+  const HtGeometry& geometry;
+  const std::vector<Cap> dark;  // occluders' caps and the half-space below the surface
+  const Frame frame;
+  const glm::vec3 woLocal;
+  const glm::vec3 origin;
+  EstimateCounters& counters;
+  mutable double peak = 0.0;  // the largest f cos seen
+
+  // Luminance of f cos towards a node's centre, zero if it is shadowed (then
+  // `shadowed` gets it).
+  double product(int level, uint64_t node, double& shadowed) const {
+    glm::vec3 c = scene.environment.direction(level, node, 0.5f, 0.5f);
+    double v = luminance(evalBsdf(*sp.material, woLocal, frame.toLocal(c)));
+    if (v <= 0.0) return 0.0;
+    peak = std::max(peak, v);
+    ++counters.shadowRays;
+    if (!occluded(scene, origin, c)) return v;
+    shadowed += v;
+    return 0.0;
+  }
+
+  bool surelyDark(int level, uint64_t node) const {
+    glm::vec3 c = level <= geometry.order ? geometry.centers[MaxAvgTree::levelOffset(level) + node]
+                                          : glm::vec3(healpix::pixToVec(level, node));
+    for (const Cap& cap : dark)
+      if (glm::dot(c, cap.axis) >= cap.cosInside[level]) return true;
+    return false;
+  }
+
+  // A node with environment average e, judged by f cos V at its own centre
+  // or at the centres of its four children. A node whose points are all
+  // dark but that is not surely dark is unresolved, weighted by e times f cos
+  // at its shadowed points or, where every point lies below the surface, by
+  // e times the largest f cos seen (set by the caller once it is known).
+  Weights weights(int level, uint64_t node, double e, bool children) const {
+    Weights w;
+    w.env = e;
+    if (e <= 0.0) return w;
+    double shadowed = 0.0;
+    if (children)
+      for (uint64_t q = 0; q < 4; ++q) w.product += 0.25 * e * product(level + 1, 4 * node + q, shadowed);
+    else
+      w.product = e * product(level, node, shadowed);
+    if (w.product == 0.0 && !surelyDark(level, node)) {
+      w.unresolved = e * shadowed;
+      w.belowSurface = shadowed == 0.0;
+    }
+    return w;
+  }
+};
+
+std::vector<Cap> darkCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry) {
+  std::vector<Cap> caps = visibilityCaps(scene, sp, geometry);
+  glm::vec3 below = glm::normalize(glm::vec3(scene.environment.toHealpixFrame(-sp.normal)));
+  caps.push_back(makeCap(below, 0.5f * kPi - 1e-3f, geometry));
+  return caps;
+}
+
+}  // namespace
 
 glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, int order, Rng& rng,
                          EstimateCounters& counters) {
   const Environment& env = scene.environment;
   if (!env.hasLight()) return glm::vec3(0.0f);
   const int k = std::clamp(order, 0, env.order);
+  const int finest = env.order + kVirtualLevels;
   const uint64_t nodes = healpix::pixelCount(k);
   const Frame frame(sp.normal);
-  const glm::vec3 woLocal = frame.toLocal(sp.wo);
-  const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
+  const HtGeometry& geometry = htGeometry(env.order);
+  const Point point{scene,   sp, geometry, darkCaps(scene, sp, geometry), frame, frame.toLocal(sp.wo),
+                    offsetRayOrigin(sp.position, sp.normal), counters};
 
+  thread_local std::vector<Weights> table;
   thread_local std::vector<double> cdf;
-  thread_local std::vector<float> product;
+  table.resize(nodes);
   cdf.resize(nodes + 1);
-  product.resize(nodes);
-  float largest = 0.0f;
-  for (uint64_t p = 0; p < nodes; ++p) {
-    float e = env.tree.avg(k, p);
-    product[p] = 0.0f;
-    if (e <= 0.0f) continue;
-    // Mean of f cos V over 2 x 2 points of the node.
-    float f = 0.0f;
-    for (int q = 0; q < 4; ++q) {
-      glm::vec3 c = env.direction(k, p, 0.25f + 0.5f * float(q & 1), 0.25f + 0.5f * float(q >> 1));
-      float v = luminance(evalBsdf(*sp.material, woLocal, frame.toLocal(c)));
-      if (v > 0.0f) {
-        ++counters.shadowRays;
-        if (!occluded(scene, origin, c)) f += 0.25f * v;
-      }
-    }
-    largest = std::max(largest, f);
-    product[p] = f;
+  Weights sum;
+  for (uint64_t p = 0; p < nodes; ++p) table[p] = point.weights(k, p, env.tree.avg(k, p), true);
+  const double peak = point.peak;
+  for (Weights& w : table) {
+    if (w.belowSurface) w.unresolved = w.env * peak;
+    sum += w;
   }
-  // Four points miss what a node's edges see: a floor keeps every lit node
-  // reachable, so the estimate stays unbiased.
-  const float floor = 1e-2f * largest + 1e-30f;
   cdf[0] = 0.0;
-  for (uint64_t p = 0; p < nodes; ++p)
-    cdf[p + 1] = cdf[p] + double(env.tree.avg(k, p)) * double(product[p] + floor);
+  for (uint64_t p = 0; p < nodes; ++p) cdf[p + 1] = cdf[p] + share(table[p], sum);
   const double total = cdf[nodes];
 
-  glm::dvec3 sum(0.0);
+  glm::dvec3 result(0.0);
   for (int i = 0; i < spp; ++i) {
     double target = double(rng.next()) * total;
     uint64_t node = uint64_t(std::upper_bound(cdf.begin() + 1, cdf.end(), target) - (cdf.begin() + 1));
     node = std::min(node, nodes - 1);
     while (cdf[node + 1] - cdf[node] <= 0.0) --node;  // never land on an empty node
     double prob = (cdf[node + 1] - cdf[node]) / total;
-    // Descend to a pixel in proportion to the environment.
-    for (int level = k + 1; level <= env.order; ++level) {
-      const float* w = &env.tree.avgv[MaxAvgTree::levelOffset(level) + 4 * node];
-      float s = w[0] + w[1] + w[2] + w[3];
-      float u = rng.next() * s, acc = 0.0f;
-      int pick = 3;
+    for (int level = k + 1; level <= finest; ++level) {
+      std::array<Weights, 4> w;
+      Weights children;
       for (int j = 0; j < 4; ++j) {
-        acc += w[j];
-        if (u < acc && w[j] > 0.0f) {
-          pick = j;
-          break;
-        }
+        uint64_t child = 4 * node + uint64_t(j);
+        w[j] = point.weights(level, child, level <= env.order ? double(env.tree.avg(level, child)) : 1.0, false);
+        if (w[j].belowSurface) w[j].unresolved = w[j].env * peak;
+        children += w[j];
       }
-      while (w[pick] <= 0.0f) --pick;
-      prob *= double(w[pick] / s);
+      std::array<double, 4> p;
+      for (int j = 0; j < 4; ++j) p[j] = share(w[j], children);
+      double u = rng.next(), acc = 0.0;
+      int pick = 0;
+      while (pick < 3 && (acc += p[pick]) <= u) ++pick;
+      while (p[pick] <= 0.0) --pick;
+      prob *= p[pick];
       node = 4 * node + uint64_t(pick);
     }
-    glm::vec3 wi = env.direction(env.order, node, rng.next(), rng.next());
+    glm::vec3 wi = env.direction(finest, node, rng.next(), rng.next());
     ++counters.directions;
-    glm::vec3 fcos = evalBsdf(*sp.material, woLocal, frame.toLocal(wi));
+    glm::vec3 fcos = evalBsdf(*sp.material, point.woLocal, frame.toLocal(wi));
     if (fcos == glm::vec3(0.0f)) continue;
     ++counters.shadowRays;
-    if (occluded(scene, origin, wi)) continue;
-    double pdf = prob / env.pixelSolidAngle();
-    sum += glm::dvec3(fcos * env.radiance[node]) / pdf;
+    if (occluded(scene, point.origin, wi)) continue;
+    double pdf = prob / healpix::pixelSolidAngle(finest);
+    result += glm::dvec3(fcos * env.radiance[node >> (2 * (finest - env.order))]) / pdf;
   }
-  return glm::vec3(sum / double(std::max(spp, 1)));
+  return glm::vec3(result / double(std::max(spp, 1)));
 }
 
 }  // namespace ht

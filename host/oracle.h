@@ -1,9 +1,14 @@
-// The variance floor of product sampling at a given resolution: per shading
-// point, the discrete product env x BRDF x visibility over every HEALPix node
-// of one level (environment average times f cos V averaged over 2 x 2 points
-// of the node), a node drawn in proportion to it, then a pixel below it in
-// proportion to the environment and a uniform direction in that pixel.
-// Brute force: 4 x 12 x 4^order BRDF evaluations and shadow rays per point.
+// The variance floor of product sampling: per shading point, the product
+// env x BRDF x visibility tabulated over every HEALPix node of one level
+// (environment average times f cos V at the centres of the node's four
+// children), a node drawn in proportion to it, then refined level by level
+// down to 3 levels below the environment's pixels, each child drawn in
+// proportion to its environment average times f cos V at its centre, and a
+// uniform direction in the final cell. A 0.2 % share of every choice goes to
+// nodes whose points all missed the light but that are not surely dark (by
+// the occluders' and the surface's caps), so that the estimate stays unbiased.
+// Brute force: 4 x 12 x 4^order BRDF evaluations and shadow rays per point;
+// the table must resolve the sharpest lobe (order 5 does for GGX alpha 0.02).
 #pragma once
 
 #include "integrator.h"

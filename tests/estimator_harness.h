@@ -15,6 +15,7 @@
 #include "healpix.h"
 #include "image_io.h"
 #include "integrator.h"
+#include "sampling.h"
 #include "scene.h"
 
 namespace ht::test {
@@ -127,6 +128,7 @@ inline glm::dvec3 bruteForceIntegral(const ShadingSetup& s, int sub) {
 struct MeanAndError {
   glm::dvec3 mean;
   glm::dvec3 stdError;
+  double luminanceVariance = 0.0;  // of one estimate
 };
 
 // `batches` independent estimates of `spp` samples each, streams 0..batches-1.
@@ -136,6 +138,7 @@ inline MeanAndError repeatedEstimates(const ShadingSetup& s, Method method, int 
   sp.material = &s.scene.materials[0];
   struct Acc {
     glm::dvec3 sum{0.0}, sumSq{0.0};
+    double lumSum = 0.0, lumSq = 0.0;
   };
   tbb::combinable<Acc> partial;
   tbb::parallel_for(tbb::blocked_range<int>(0, batches), [&](const auto& r) {
@@ -146,18 +149,24 @@ inline MeanAndError repeatedEstimates(const ShadingSetup& s, Method method, int 
       glm::dvec3 e(estimateDirect(s.scene, sp, method, spp, rng, counters, options));
       a.sum += e;
       a.sumSq += e * e;
+      double y = luminance(glm::vec3(e));
+      a.lumSum += y;
+      a.lumSq += y * y;
     }
   });
   Acc total;
   partial.combine_each([&](const Acc& a) {
     total.sum += a.sum;
     total.sumSq += a.sumSq;
+    total.lumSum += a.lumSum;
+    total.lumSq += a.lumSq;
   });
   MeanAndError r;
   double n = batches;
   r.mean = total.sum / n;
   glm::dvec3 var = glm::max(glm::dvec3(0.0), (total.sumSq / n - r.mean * r.mean) * (n / (n - 1.0)));
   r.stdError = glm::sqrt(var / n);
+  r.luminanceVariance = std::max(0.0, (total.lumSq / n - (total.lumSum / n) * (total.lumSum / n)) * (n / (n - 1.0)));
   return r;
 }
 

@@ -3,8 +3,8 @@
 #   1. tools/bench.py on data/scenes/spheres.json: every method at 4/16/64/256
 #      spp on the cpu, and on the gpu (lavapipe here) every method the GPU path
 #      has, at $GPU_SPP;
-#   2. the variance floor: oracle against ht-vis, ht and mis at 16 spp (oracle
-#      is slow, so at a smaller resolution; side by side in one run);
+#   2. the variance floor: oracle against ht-vis, ht and mis at 16 spp, side by
+#      side in one run (oracle is slow: 16 spp only);
 #   3. tools/bench.py on every data/scenes/stress/*.json at one spp (the report
 #      carries each method's relMSE to equal time);
 #   4. tools/scaling.py: render time against spp, environment Nside and image
@@ -31,8 +31,8 @@ GPU_SPP=${GPU_SPP:-4,16,64}
 GPU_RUNS=${GPU_RUNS:-1}
 REF_SPP=${REF_SPP:-2048}
 MAX_SECONDS=${MAX_SECONDS:-60}   # skip a point predicted to take longer; time a long one once
-FLOOR_WIDTH=${FLOOR_WIDTH:-100}   # oracle variance floor
-FLOOR_HEIGHT=${FLOOR_HEIGHT:-50}
+FLOOR_WIDTH=${FLOOR_WIDTH:-200}  # oracle variance floor
+FLOOR_HEIGHT=${FLOOR_HEIGHT:-100}
 ORACLE_ORDER=${ORACLE_ORDER:-6}  # its table: Nside 2^6 = 64
 STRESS_WIDTH=${STRESS_WIDTH:-80}
 STRESS_HEIGHT=${STRESS_HEIGHT:-40}
