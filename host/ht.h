@@ -68,6 +68,7 @@ struct Cap {
   std::array<float, 32> cosInside, cosOutside;
 };
 
+// A cap with its per-level inside / outside tests for nodes of `geometry`.
 Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry);
 // The caps of every sphere and plane as seen from the shading point's
 // shadow-ray origin.
