@@ -41,6 +41,7 @@ static_assert(int(Method::Uniform) == HT_METHOD_UNIFORM && int(Method::Cosine) =
 static_assert(int(Method::Oracle) == HT_METHOD_ORACLE && int(Method::Wis) == HT_METHOD_WIS &&
               int(Method::WisBiased) == HT_METHOD_WIS_BIASED && int(Method::Tsis) == HT_METHOD_TSIS &&
               int(Method::Ris) == HT_METHOD_RIS);
+static_assert(BrdfTable::kMargin == float(HT_BRDF_TABLE_MARGIN));
 static_assert(TsisPoint::kDefaultRegions == HT_TSIS_REGIONS && TsisTable::kMaxLevel == HT_TSIS_MAX_LEVEL);
 static_assert(WisPoint::kExactLevels == HT_WIS_EXACT_LEVELS && WisPoint::kMaxOrder == HT_WIS_MAX_ORDER &&
               MaxAvgTree::levelOffset(HT_WIS_EXACT_LEVELS + 1) == HT_WIS_TOP_NODES);
@@ -104,6 +105,38 @@ vk::Buffer uploadArray(vk::Context& ctx, const std::vector<T>& items) {
   return b;
 }
 
+// Loop iterations one pixel may spend in one dispatch, a quarter of what
+// llvmpipe allows an invocation in all (GpuPixelState).
+constexpr uint64_t kLoopIterationsPerBatch = 16384;
+// Batches a submission holds, at most.
+constexpr uint64_t kBatchesPerSubmission = 64;
+
+// Samples (ht*: traversal steps) per pixel and dispatch, from a rough count
+// of the loop iterations each costs. Only the first guess: a dispatch whose
+// loops were cut short makes the renderer halve it and start the tile again.
+uint32_t firstBatchLimit(const RenderSettings& s, int envOrder, size_t shapes) {
+  const uint64_t descent = uint64_t(envOrder) + 4 + shapes;  // one environment sample and its shadow ray
+  uint64_t cost = descent;
+  switch (s.method) {
+    case Method::Mis: cost = 2 * descent; break;
+    case Method::Ris: cost = uint64_t(std::max(s.options.risCandidates, 1)) * descent + shapes; break;
+    case Method::Tsis: cost = 2 * HT_TSIS_REGIONS + 4 * descent; break;
+    case Method::Wis:
+    case Method::WisBiased: {
+      const int order = std::clamp(s.options.wisOrder, 0, std::min(envOrder, HT_WIS_MAX_ORDER));
+      cost = 12 + 4 * uint64_t(order) + descent;
+      if (s.method == Method::WisBiased) cost += uint64_t(1) << (2 * (envOrder - order));
+      break;
+    }
+    case Method::Ht:
+    case Method::HtVis:
+    case Method::HtBiased:
+    case Method::HtVisBiased: cost = 2 * HT_MAX_ORDER + 6 * shapes + descent; break;
+    default: break;
+  }
+  return uint32_t(std::clamp<uint64_t>(kLoopIterationsPerBatch / cost, 1, 1u << 20));
+}
+
 }  // namespace
 
 std::vector<GpuDeviceInfo> listGpuDevices() {
@@ -145,6 +178,7 @@ struct GpuRenderer::Impl {
   VkQueryPool queries = VK_NULL_HANDLE;
   uint64_t timestampMask = 0;
   uint32_t maxTileSide = 512;
+  uint32_t batchLimit = 0;
 
   // Per scene.
   bool hasScene = false;
@@ -152,6 +186,7 @@ struct GpuRenderer::Impl {
   vk::Buffer sceneBuffer, materials, spheres, planes;
   // Per tile.
   vk::Buffer pixels;
+  vk::Buffer pixelState;   // GpuPixelState per tile pixel
   vk::Buffer tsisScratch;  // GpuTsisSlot per region and tile pixel
   vk::Buffer wisScratch;   // HT_WIS_TOP_NODES doubles per tile pixel
   // ht*: uploaded at their first render, the scene struct uploaded again.
@@ -170,6 +205,7 @@ struct GpuRenderer::Impl {
       : ctx(vk::ContextOptions{o.deviceIndex, o.validation, !o.forceFp32, o.validationLog}) {
     info = toInfo(ctx.info);
     recordHtSamples = o.recordHtSamples;
+    batchLimit = o.batchLimit;
     maxTileSide = std::max<uint32_t>(kWorkgroupSize, uint32_t(std::max(o.maxTileSide, 1)) / kWorkgroupSize * kWorkgroupSize);
     shaderName = ctx.float64 ? "render.fp64.spv" : "render.fp32.spv";
     const std::string dir = o.shaderDir.empty() ? shaderDirNextToExecutable() : o.shaderDir;
@@ -363,6 +399,8 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
     m.pixels = vk::Buffer(m.ctx, pixelBytes, vk::MemoryUse::Readback);
     m.pipeline->setBuffer(HT_BINDING_PIXELS, m.pixels);
   }
+  const VkDeviceSize stateBytes = VkDeviceSize(tileW) * tileH * sizeof(GpuPixelState);
+  if (m.pixelState.size() < stateBytes) m.pixelState = vk::Buffer(m.ctx, stateBytes, vk::MemoryUse::DeviceLocal);
   const VkDeviceSize tsisBytes = VkDeviceSize(tileW) * tileH * HT_TSIS_REGIONS * sizeof(GpuTsisSlot);
   if (s.method == Method::Tsis && m.tsisScratch.size() < tsisBytes)
     m.tsisScratch = vk::Buffer(m.ctx, tsisBytes, vk::MemoryUse::DeviceLocal);
@@ -386,11 +424,13 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
   r.image.width = s.width;
   r.image.height = s.height;
   r.image.pixels.assign(size_t(s.width) * s.height, glm::vec3(0.0f));
+  if (s.pixelCounts) r.pixelDirections.assign(size_t(s.width) * s.height, 0);
   const uint32_t tilesX = (uint32_t(s.width) + tileW - 1) / tileW;
   const uint32_t tilesY = (uint32_t(s.height) + tileH - 1) / tileH;
   const uint32_t tileCount = tilesX * tilesY;
   double gpuNs = 0.0;
   int lastReported = -1;
+  uint32_t batchLimit = m.batchLimit > 0 ? m.batchLimit : firstBatchLimit(s, m.envOrder, m.occluders);
 
   for (uint32_t ty = 0; ty < tilesY; ++ty)
     for (uint32_t tx = 0; tx < tilesX; ++tx) {
@@ -420,35 +460,79 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
       push.tsisScratch = s.method == Method::Tsis ? m.tsisScratch.address() : 0;
       push.wisScratch = wisMethod ? m.wisScratch.address() : 0;
       push.wisOrder = uint32_t(std::max(s.options.wisOrder, 0));
-      m.ctx.submitAndWait([&](VkCommandBuffer cmd) {
-        // Uploads (host writes, staging copies) before the shader reads.
-        VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-        before.srcAccessMask = VK_ACCESS_HOST_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
-        before.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
-        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                             VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &before, 0, nullptr, 0, nullptr);
-        if (m.queries) {
-          vkCmdResetQueryPool(cmd, m.queries, 0, 2);
-          vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, m.queries, 0);
-        }
-        m.pipeline->dispatch(cmd, &push, (push.tileWidth + kWorkgroupSize - 1) / kWorkgroupSize,
-                             (push.tileHeight + kWorkgroupSize - 1) / kWorkgroupSize);
-        if (m.queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, m.queries, 1);
-        VkMemoryBarrier after{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-        after.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-        after.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &after, 0,
-                             nullptr, 0, nullptr);
-      });
-      if (m.queries) {
-        uint64_t stamps[2];
-        vk::check(vkGetQueryPoolResults(m.ctx.device, m.queries, 0, 2, sizeof(stamps), stamps, sizeof(uint64_t),
-                                        VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
-                  "vkGetQueryPoolResults");
-        gpuNs += double((stamps[1] - stamps[0]) & m.timestampMask) * double(m.ctx.info.timestampPeriodNs);
-      }
-      m.pixels.invalidate();
+      push.pixelState = m.pixelState.address();
+      push.canaryLoops = 2;
+      push.canaryZero = 0;
+      const uint32_t groupsX = (push.tileWidth + kWorkgroupSize - 1) / kWorkgroupSize;
+      const uint32_t groupsY = (push.tileHeight + kWorkgroupSize - 1) / kWorkgroupSize;
+      const size_t tilePixels = size_t(push.tileWidth) * push.tileHeight;
       const auto* px = static_cast<const GpuPixel*>(m.pixels.mapped());
+      // Batches until every pixel of the tile is done; the whole tile again
+      // with smaller batches where the driver cut a loop short.
+      for (uint32_t batch = 0;;) {
+        // The sampling methods need ceil(spp / limit) batches; HT's traversal
+        // takes some 40 steps per sample, read back to see when it is done.
+        const uint64_t expected = htMethod ? (40 * spp + 400 + batchLimit - 1) / batchLimit
+                                           : (spp + batchLimit - 1) / batchLimit;
+        const uint32_t count = uint32_t(std::clamp<uint64_t>(expected - std::min<uint64_t>(expected, batch), 1,
+                                                             kBatchesPerSubmission));
+        m.ctx.submitAndWait([&](VkCommandBuffer cmd) {
+          // Uploads (host writes, staging copies) before the shader reads.
+          VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+          before.srcAccessMask = VK_ACCESS_HOST_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+          before.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+          vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                               VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &before, 0, nullptr, 0, nullptr);
+          if (m.queries) {
+            vkCmdResetQueryPool(cmd, m.queries, 0, 2);
+            vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, m.queries, 0);
+          }
+          for (uint32_t k = 0; k < count; ++k) {
+            if (k > 0) {
+              // Each batch reads the pixel states the previous one wrote.
+              VkMemoryBarrier between{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+              between.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+              between.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+              vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0,
+                                   1, &between, 0, nullptr, 0, nullptr);
+            }
+            push.batch = batch + k;
+            push.batchLimit = batchLimit;
+            m.pipeline->dispatch(cmd, &push, groupsX, groupsY);
+          }
+          if (m.queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, m.queries, 1);
+          VkMemoryBarrier after{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+          after.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+          after.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+          vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &after, 0,
+                               nullptr, 0, nullptr);
+        });
+        if (m.queries) {
+          uint64_t stamps[2];
+          vk::check(vkGetQueryPoolResults(m.ctx.device, m.queries, 0, 2, sizeof(stamps), stamps, sizeof(uint64_t),
+                                          VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
+                    "vkGetQueryPoolResults");
+          gpuNs += double((stamps[1] - stamps[0]) & m.timestampMask) * double(m.ctx.info.timestampPeriodNs);
+        }
+        batch += count;
+        m.pixels.invalidate();
+        bool cut = false, done = true;
+        for (size_t i = 0; i < tilePixels; ++i) {
+          cut = cut || (px[i].status & HT_PIXEL_LOOPS_CUT) != 0;
+          done = done && (px[i].status & HT_PIXEL_DONE) != 0;
+        }
+        if (cut) {
+          if (batchLimit == 1)
+            throw Error(fmt::format("the Vulkan driver of {} ended a shader loop early even at one sample per "
+                                    "dispatch; use --device cpu", m.info.name));
+          batchLimit /= 2;
+          batch = 0;
+          ++out.restarts;
+          continue;
+        }
+        if (done) break;
+      }
+      out.batchLimit = batchLimit;
       for (uint32_t y = 0; y < push.tileHeight; ++y)
         for (uint32_t x = 0; x < push.tileWidth; ++x) {
           const GpuPixel& p = px[size_t(y) * push.tileWidth + x];
@@ -457,6 +541,7 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
           r.counters.directions += p.directions;
           r.counters.shadowRays += p.shadowRays;
           r.counters.htNodes += p.htNodes;
+          if (s.pixelCounts) r.pixelDirections[size_t(push.tileY + y) * s.width + push.tileX + x] = p.directions;
         }
       if (htMethod && m.recordHtSamples) {
         if (out.htSamples.empty()) out.htSamples.resize(size_t(s.width) * s.height);

@@ -25,6 +25,7 @@ struct GpuOptions {
   std::string shaderDir;    // empty: shaders/ next to the executable
   int maxTileSide = 512;    // tiles are at most this many pixels wide and high (a multiple of 8)
   bool recordHtSamples = false;  // ht*: keep the first 64 accepted samples of every pixel (tests)
+  uint32_t batchLimit = 0;  // samples (ht*: traversal steps) per pixel and dispatch to start with; 0: estimated
 };
 
 // One Vulkan device, as `htrender info` lists it.
@@ -67,6 +68,8 @@ struct GpuRenderResult {
   RenderResult result;      // image, wall seconds, counters, as renderCpu
   double gpuSeconds = -1.0; // sum of the dispatches' timestamps; < 0 without timestamps
   int tiles = 0;
+  int restarts = 0;        // tiles started again with smaller batches (a driver cut a loop short)
+  uint32_t batchLimit = 0; // samples (ht*: traversal steps) per pixel and dispatch, at the end
   // With GpuOptions::recordHtSamples: per pixel (y * width + x), its first accepted samples in order.
   std::vector<std::vector<HtSampleRecord>> htSamples;
 };

@@ -367,7 +367,10 @@ bool HtPoint::stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pat
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
   const glm::vec3& c = geometry.centers[i];
   float centre = brdfValue(c);
-  if (!(centre > 0.0f) || brdfBound(i) > (1.0f + options.biasedSmoothness) * centre) return false;
+  // Smooth where the BRDF's maximum over the node is close to its centre
+  // value; the tables' maxima carry a margin that is not the BRDF's.
+  const float margin = options.brdfTable ? BrdfTable::kMargin : 1.0f;
+  if (!(centre > 0.0f) || brdfBound(i) > (1.0f + options.biasedSmoothness) * centre * margin) return false;
   // The environment keeps its exact value; a node where it varies a lot
   // would turn that into fireflies.
   if (env.tree.maxv[i] > 2.0f * env.tree.avgv[i]) return false;
@@ -378,7 +381,8 @@ bool HtPoint::stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pat
   if (double(r) + w.u >= t) return true;
   if (double(r) + double(stride(level)) + w.u < t) return false;
   HtSample s;
-  glm::dvec3 hp = healpix::pixToVec(level, node, w.jitter.next(), w.jitter.next());
+  const glm::vec2 jitter = w.jitter.next2();
+  glm::dvec3 hp = healpix::pixToVec(level, node, jitter.x, jitter.y);
   s.dir = env.fromHealpixFrame(hp);
   s.pixel = healpix::vecToPix(env.order, hp);
   s.candidate = r;

@@ -114,7 +114,7 @@ glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method meth
   glm::dvec3 sum(0.0);
 
   auto bsdfDirection = [&](float& pdf) {
-    glm::vec3 u(rng.next(), rng.next(), rng.next());
+    const glm::vec3 u = rng.next3();
     glm::vec3 local = sampleBsdf(mat, sh.woLocal, u);
     pdf = bsdfPdf(mat, sh.woLocal, local);
     return sh.frame.toWorld(local);

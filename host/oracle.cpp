@@ -160,7 +160,8 @@ glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, in
       prob *= p[pick];
       node = 4 * node + uint64_t(pick);
     }
-    glm::vec3 wi = env.direction(finest, node, rng.next(), rng.next());
+    const glm::vec2 jitter = rng.next2();
+    glm::vec3 wi = env.direction(finest, node, jitter.x, jitter.y);
     ++counters.directions;
     glm::vec3 fcos = evalBsdf(*sp.material, point.woLocal, frame.toLocal(wi));
     if (fcos == glm::vec3(0.0f)) continue;

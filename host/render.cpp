@@ -18,6 +18,7 @@ RenderResult renderCpu(const Scene& scene, const RenderSettings& s) {
   result.image.width = s.width;
   result.image.height = s.height;
   result.image.pixels.assign(size_t(s.width) * s.height, glm::vec3(0.0f));
+  if (s.pixelCounts) result.pixelDirections.assign(size_t(s.width) * s.height, 0);
 
   struct Local {
     EstimateCounters counters;
@@ -41,7 +42,9 @@ RenderResult renderCpu(const Scene& scene, const RenderSettings& s) {
         }
         ShadingPoint sp{hit.position, hit.normal, -ray.dir, &scene.materials[hit.material]};
         Rng rng(s.seed, pixelStream(x, y, s.width));
+        const uint64_t before = local.counters.directions;
         out = estimateDirect(scene, sp, s.method, s.spp, rng, local.counters, s.options);
+        if (s.pixelCounts) result.pixelDirections[size_t(y) * s.width + x] = uint32_t(local.counters.directions - before);
         ++local.shaded;
       }
       int done = ++rowsDone;

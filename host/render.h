@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "image_io.h"
 #include "integrator.h"
@@ -18,6 +19,7 @@ struct RenderSettings {
   int width = 512;
   int height = 288;
   bool progress = false;  // percentage on stderr
+  bool pixelCounts = false;  // keep each pixel's count of directions drawn
   MethodOptions options;
 };
 
@@ -26,6 +28,7 @@ struct RenderResult {
   double seconds = 0.0;
   uint64_t shadedPixels = 0;
   EstimateCounters counters;
+  std::vector<uint32_t> pixelDirections;  // with RenderSettings::pixelCounts: per pixel, y * width + x
 };
 
 // Random stream of a pixel: the same for every method, device and thread count.

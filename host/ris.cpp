@@ -26,7 +26,7 @@ RisCandidate RisSampler::candidate(Rng& rng) const {
     const EnvSample s = sampleEnvironment(env_, rng);
     return evaluate(s.dir, s.pdf > 0.0f ? env_.radiance[s.pixel] : glm::vec3(0.0f), s.pdf);
   }
-  const glm::vec3 u(rng.next(), rng.next(), rng.next());
+  const glm::vec3 u = rng.next3();
   const glm::vec3 dir = frame_.toWorld(sampleBsdf(material_, woLocal_, u));
   return evaluate(dir, env_.eval(dir), environmentPdf(env_, dir));
 }

@@ -4,6 +4,9 @@
 
 #include <cstdint>
 
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
 namespace ht {
 
 // PCG-RXS-M-XS 32-bit output permutation used as a hash (Jarzynski & Olano,
@@ -28,6 +31,19 @@ struct Rng {
   }
   // Uniform in [0, 1): 24 random mantissa bits, never 1.
   float next() { return float(nextUint() >> 8) * 0x1p-24f; }
+  // Several draws, x first: the order of a constructor's or a function's
+  // arguments is unspecified, and the shaders must draw in the CPU's order.
+  glm::vec2 next2() {
+    const float x = next();
+    const float y = next();
+    return {x, y};
+  }
+  glm::vec3 next3() {
+    const float x = next();
+    const float y = next();
+    const float z = next();
+    return {x, y, z};
+  }
 };
 
 }  // namespace ht

@@ -63,6 +63,7 @@
 #define HT_FLAG_BRDF_TABLE 4u
 #define HT_FLAG_SPHERE_SEQUENCE 8u
 #define HT_MAX_CAPS 16
+#define HT_MAX_ORDER 13  // healpix::kMaxOrder
 #define HT_MAX_BUDGET_REFINEMENTS 24
 #define HT_SAMPLE_LOG_SLOTS 64
 // ht* with table bounds: BrdfTable's sizes (host/brdf_table.h); per material
@@ -71,6 +72,7 @@
 #define HT_BRDF_TABLE_THETA 64
 #define HT_BRDF_TABLE_PHI 128
 #define HT_BRDF_TABLE_LEVELS 7
+#define HT_BRDF_TABLE_MARGIN 1.25  // BrdfTable::kMargin: the maxima's safety factor
 #define HT_BRDF_TABLE_CELLS (HT_BRDF_TABLE_THETA_O * HT_BRDF_TABLE_THETA * HT_BRDF_TABLE_PHI)
 #define HT_BRDF_TABLE_FLOATS (2 * HT_BRDF_TABLE_CELLS + 16 * (2048 + 512 + 128 + 32 + 8 + 2))
 
@@ -101,6 +103,7 @@ layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer Dou
 layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer DoubleChunk { uvec2 v[]; };
 #endif
 layout(buffer_reference) buffer TsisScratch;
+layout(buffer_reference) buffer PixelStates;
 #if HT_FP64
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer WisScratch { double v[]; };
 #else
@@ -175,8 +178,10 @@ struct GpuPixel {
   uint directions;  // directions drawn
   uint shadowRays;
   uint htNodes;     // HT nodes visited (HT stage)
-  uint reserved;
+  uint status;      // HT_PIXEL_DONE, HT_PIXEL_LOOPS_CUT
 };
+#define HT_PIXEL_DONE 1u       // the estimate is complete
+#define HT_PIXEL_LOOPS_CUT 2u  // the driver ended a loop early: this dispatch's results are wrong
 
 // Test only: one accepted HT sample (GpuPush::htSampleLog).
 struct GpuHtSample {
@@ -185,6 +190,33 @@ struct GpuHtSample {
   uvec2 candidate;  // accepted VDC index (low, high words)
   uint level;       // level of the cell it was jittered in
   float weight;     // 1 / (s h)
+};
+
+// Per tile pixel, kept from one dispatch of the tile to the next. A pixel's
+// estimate runs in batches of GpuPush::batchLimit samples (HT: traversal
+// steps), because Mesa's llvmpipe ends every loop of an invocation once its
+// loops have run 65535 iterations in all, and so that no dispatch runs long.
+// Reals are kept as their bits: doubles in the HT_FP64 shader, floats in the
+// low word otherwise.
+struct GpuPixelState {
+  uint64_t sum[3];  // the estimate's running sum
+  uint rng;         // the pixel's stream
+  uint next;        // next sample index
+  uint directions;
+  uint shadowRays;
+  uint htNodes;
+  uint done;        // 1: the estimate is complete
+  uvec2 shift;      // wis, tsis: the sequence's digital shift
+  // ht*: where the stackless traversal stands (ht.glsl).
+  uint htSeed;
+  uint htFace;
+  uint htLevel;
+  float htLeafH;
+  uint64_t htNode;
+  uint64_t htR;
+  uint64_t htS;  // samples per unit of h
+  uint64_t htU;  // the pixel's offset
+  float htPathMin[HT_MAX_ORDER + 1];
 };
 
 // Per dispatch (at most 128 bytes on lavapipe).
@@ -206,6 +238,7 @@ struct GpuTsisSlot {
 #undef HT_DOUBLE
 #ifndef __cplusplus
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer TsisScratch { GpuTsisSlot slots[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 8) buffer PixelStates { GpuPixelState s[]; };
 #endif
 
 struct GpuPush {
@@ -233,6 +266,11 @@ struct GpuPush {
   HT_CHUNK_REF(WisScratch) wisScratch;
   uint wisOrder;  // wis*: requested order of the sampled product
   uint wisReserved;
+  HT_CHUNK_REF(PixelStates) pixelState;  // GpuPixelState per tile pixel
+  uint batch;       // 0: the tile's first dispatch, which starts every pixel
+  uint batchLimit;  // samples (ht*: traversal steps) per pixel and dispatch
+  uint canaryLoops; // iterations of the loop that tells whether loops were cut short
+  uint canaryZero;  // always 0: keeps the compiler from folding that loop away
 };
 
 #ifdef __cplusplus
@@ -250,9 +288,13 @@ static_assert(sizeof(GpuMaterial) == 40 && offsetof(GpuMaterial, diffuse) == 4 &
 static_assert(sizeof(GpuSphere) == 20 && offsetof(GpuSphere, radius) == 12 && offsetof(GpuSphere, material) == 16);
 static_assert(sizeof(GpuPlane) == 28 && offsetof(GpuPlane, normal) == 12 && offsetof(GpuPlane, material) == 24);
 static_assert(sizeof(GpuPixel) == 32 && offsetof(GpuPixel, shaded) == 12 && offsetof(GpuPixel, htNodes) == 24);
-static_assert(sizeof(GpuPush) == 88 && offsetof(GpuPush, seed) == 32 && offsetof(GpuPush, risCandidates) == 60 &&
+static_assert(sizeof(GpuPush) == 112 && offsetof(GpuPush, seed) == 32 && offsetof(GpuPush, risCandidates) == 60 &&
               offsetof(GpuPush, tsisScratch) == 64 && offsetof(GpuPush, wisScratch) == 72 &&
-              offsetof(GpuPush, wisOrder) == 80);
+              offsetof(GpuPush, wisOrder) == 80 && offsetof(GpuPush, pixelState) == 88 &&
+              offsetof(GpuPush, batch) == 96 && offsetof(GpuPush, canaryLoops) == 104);
+static_assert(sizeof(GpuPixelState) == 160 && offsetof(GpuPixelState, rng) == 24 &&
+              offsetof(GpuPixelState, shift) == 48 && offsetof(GpuPixelState, htLeafH) == 68 &&
+              offsetof(GpuPixelState, htNode) == 72 && offsetof(GpuPixelState, htPathMin) == 104);
 static_assert(sizeof(GpuTsisSlot) == 56 && offsetof(GpuTsisSlot, energy) == 24 && offsetof(GpuTsisSlot, cdf) == 48);
 static_assert(offsetof(GpuPush, htFlags) == 36 && offsetof(GpuPush, htSampleLog) == 52);
 static_assert(sizeof(GpuHtSample) == 32 && offsetof(GpuHtSample, candidate) == 16 && offsetof(GpuHtSample, level) == 24);

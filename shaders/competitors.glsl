@@ -51,13 +51,13 @@ RisCandidate risCandidate(Shading sh, inout uint rng) {
   return risEvaluate(sh, dir, envEval(dir), environmentPdf(dir));
 }
 
-// estimateRis: per sample, `candidates` candidates streamed through a
-// one-element reservoir, one shadow ray for the one kept.
-vec3 estimateRis(Shading sh, uint spp, uint candidates, inout uint rng, inout uint directions) {
-  if (scene.envHasLight == 0u) return vec3(0.0);
+// estimateRis, samples [begin, end): per sample, `candidates` candidates
+// streamed through a one-element reservoir, one shadow ray for the one kept.
+uint risSamples(Shading sh, uint begin, uint end, uint candidates, inout uint rng, inout accvec3 sum,
+                inout uint directions) {
   uint m = max(candidates, 1u);
-  precise accvec3 sum = accvec3(0.0);
-  for (uint i = 0u; i < spp; ++i) {
+  uint i = begin;
+  for (; i < end; ++i) {
     RisCandidate chosen;
     chosen.dir = vec3(0.0, 1.0, 0.0);
     chosen.radiance = vec3(0.0);
@@ -80,11 +80,11 @@ vec3 estimateRis(Shading sh, uint spp, uint candidates, inout uint rng, inout ui
     ++gShadowRays;
     if (!occluded(sh.origin, chosen.dir)) {
       precise vec3 product = chosen.radiance * chosen.fcos;
-      sum += accvec3(product) * weight;
+      precise accvec3 total = sum + accvec3(product) * weight;
+      sum = total;
     }
   }
-  precise accvec3 mean = sum / accvec3(max(spp, 1u));
-  return vec3(mean);
+  return i - begin;
 }
 
 // ---------------------------------------------------------------- tsis
@@ -380,17 +380,20 @@ precise dvec2 scrambledSobol(uint i, uvec2 shift, inout uint rng) {
   return dvec2(min(ux, kBelowOneD), min(uy, kBelowOneD));
 }
 
-// estimateTsis: `spp` points of one scrambled (0,2)-sequence through the two stages.
-vec3 estimateTsis(Shading sh, vec3 normal, vec3 wo, uint spp, inout uint rng, inout uint directions) {
-  if (scene.envHasLight == 0u) return vec3(0.0);
+// estimateTsis: `spp` points of one scrambled (0,2)-sequence through the
+// two stages. tsisPrepare partitions the sphere (every dispatch: it draws
+// nothing); false when there is nothing to sample.
+bool tsisPrepare(Shading sh, vec3 normal, vec3 wo) {
+  if (scene.envHasLight == 0u) return false;
   gTsisBase = (gl_GlobalInvocationID.y * pc.tileWidth + gl_GlobalInvocationID.x) * HT_TSIS_REGIONS;
   tsisPartition(normal, wo, sh.material);
-  if (!(gTsisTotal > 0.0)) return vec3(0.0);
-  uvec2 shift;
-  shift.x = rngNextUint(rng);
-  shift.y = rngNextUint(rng);
-  precise dvec3 sum = dvec3(0.0);
-  for (uint i = 0u; i < spp; ++i) {
+  return gTsisTotal > 0.0;
+}
+// Samples [begin, end) of the sequence with this shift.
+uint tsisSamples(Shading sh, uint begin, uint end, uvec2 shift, inout uint rng, inout dvec3 sum,
+                 inout uint directions) {
+  uint i = begin;
+  for (; i < end; ++i) {
     precise dvec2 u = scrambledSobol(i, shift, rng);
     uint pixel;
     vec3 dir;
@@ -398,10 +401,10 @@ vec3 estimateTsis(Shading sh, vec3 normal, vec3 wo, uint spp, inout uint rng, in
     directions += 1u;
     if (!(pdf > 0.0)) continue;
     precise dvec3 est = dvec3(reflected(sh, dir, envRadiance(pixel))) / pdf;
-    sum += est;
+    precise dvec3 total = sum + est;
+    sum = total;
   }
-  precise dvec3 mean = sum / double(max(spp, 1u));
-  return vec3(mean);
+  return i - begin;
 }
 
 // ---------------------------------------------------------------- wis
@@ -505,17 +508,20 @@ vec3 wisApproximateProduct(GpuMaterial m, uint pixel) {
 
 // estimateWis: `spp` points of one scrambled (0,2)-sequence warped down the
 // product tree; wis-biased returns the approximated product instead of f.
-vec3 estimateWis(Shading sh, vec3 normal, vec3 wo, uint spp, bool biased, inout uint rng, inout uint directions) {
-  if (scene.envHasLight == 0u) return vec3(0.0);
+// wisPrepare builds the tree (every dispatch: it draws nothing); false when
+// there is nothing to sample.
+bool wisPrepare(Shading sh, vec3 normal, vec3 wo) {
+  if (scene.envHasLight == 0u) return false;
   gWisBase = (gl_GlobalInvocationID.y * pc.tileWidth + gl_GlobalInvocationID.x) * HT_WIS_TOP_NODES;
   wisBuild(normal, wo, sh.material);
-  if (!(gWisTotal > 0.0)) return vec3(0.0);
+  return gWisTotal > 0.0;
+}
+// Samples [begin, end) of the sequence with this shift.
+uint wisSamples(Shading sh, uint begin, uint end, uvec2 shift, bool biased, inout uint rng, inout dvec3 sum,
+                inout uint directions) {
   double pixelSolidAngle = wisPixelSolidAngle(gWisOrder);
-  uvec2 shift;
-  shift.x = rngNextUint(rng);
-  shift.y = rngNextUint(rng);
-  precise dvec3 sum = dvec3(0.0);
-  for (uint i = 0u; i < spp; ++i) {
+  uint i = begin;
+  for (; i < end; ++i) {
     precise dvec2 u = scrambledSobol(i, shift, rng);
     uint pixel;
     double probability;
@@ -537,18 +543,24 @@ vec3 estimateWis(Shading sh, vec3 normal, vec3 wo, uint spp, bool biased, inout 
       value = dvec3(product) / pdf;
     }
     ++gShadowRays;
-    if (!occluded(sh.origin, dir)) sum += value;
+    if (!occluded(sh.origin, dir)) {
+      precise dvec3 total = sum + value;
+      sum = total;
+    }
   }
-  precise dvec3 mean = sum / double(max(spp, 1u));
-  return vec3(mean);
+  return i - begin;
 }
 
 #else
-vec3 estimateWis(Shading sh, vec3 normal, vec3 wo, uint spp, bool biased, inout uint rng, inout uint directions) {
-  return vec3(0.0);
+bool wisPrepare(Shading sh, vec3 normal, vec3 wo) { return false; }
+uint wisSamples(Shading sh, uint begin, uint end, uvec2 shift, bool biased, inout uint rng, inout accvec3 sum,
+                inout uint directions) {
+  return end - begin;
 }
-vec3 estimateTsis(Shading sh, vec3 normal, vec3 wo, uint spp, inout uint rng, inout uint directions) {
-  return vec3(0.0);
+bool tsisPrepare(Shading sh, vec3 normal, vec3 wo) { return false; }
+uint tsisSamples(Shading sh, uint begin, uint end, uvec2 shift, inout uint rng, inout accvec3 sum,
+                 inout uint directions) {
+  return end - begin;
 }
 #endif
 

@@ -21,7 +21,6 @@
 #include "environment.glsl"
 #include "scene.glsl"
 
-#define HT_MAX_ORDER 13  // healpix::kMaxOrder
 #define HT_MAX_FRONTIER (12 + 3 * HT_MAX_BUDGET_REFINEMENTS)
 
 // The 24 permutations of {0, 1, 2, 3} in lexicographic order, digit j in bits 2j..2j+1.
@@ -359,31 +358,57 @@ uint htCompressBits(uint64_t v) {
 }
 
 
-// estimateHt for the ht* methods, after estimateDirect's draw of the pixel
-// seed. One pass of the loop is one call of HtPoint::visit (data levels,
-// biased stop and leafValue included) or of HtPoint::visitVirtual.
-vec3 estimateHt(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout uint rng, inout uint directions) {
-  uint seed = rngNextUint(rng);
-  if (scene.envHasLight == 0u) return vec3(0.0);
+// estimateHt for the ht* methods, in batches: htBegin after estimateDirect's
+// draw of the pixel seed, then htSteps until the traversal is done. One step
+// is one call of HtPoint::visit (data levels, biased stop and leafValue
+// included) or of HtPoint::visitVirtual.
+struct HtWalk {
+  uint seed;
+  uint face;
+  uint level;
+  uint64_t node;
+  uint64_t r;  // lowest candidate of the node
+  float leafH;
+};
+// The smallest bound on the path, per data level (the one value the hash cannot give back).
+float gHtPathMin[HT_MAX_ORDER + 1];
+
+// False when the pixel has nothing to sample.
+bool htBegin(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout uint rng, out HtWalk w) {
+  w.seed = rngNextUint(rng);
+  w.face = 0u;
+  w.level = 0u;
+  w.node = 0ul;
+  w.r = 0ul;
+  w.leafH = 0.0;
+  gHtSum = accvec3(0.0);
+  gHtSamples = 0u;
+  if (scene.envHasLight == 0u) return false;
   htInit(position, normal, wo, sh.material);
   hreal cEst = htEstimateBudget();
   precise hreal s = hreal(spp) / cEst;
   ht.s = cEst > 0.0 ? s : 0.0;
   ht.u = hreal(rngNext(rng));
-  gHtSum = accvec3(0.0);
-  gHtSamples = 0u;
-  if (ht.s <= 0.0) return vec3(0.0);
+  if (ht.s <= 0.0) return false;
+  w.r = htFaceDigits(w.seed) & 15ul;
+  return true;
+}
 
+// At most `steps` steps of the walk; true once it has visited every face.
+// `taken`: the steps it took.
+bool htSteps(Shading sh, inout HtWalk w, uint steps, inout uint rng, out uint taken) {
   const bool biased = (ht.flags & HT_FLAG_BIASED) != 0u;
   const bool visibility = (ht.flags & HT_FLAG_VISIBILITY) != 0u;
-  const uint64_t faceDigits = htFaceDigits(seed);
-  float pathMin[HT_MAX_ORDER + 1];
-  float leafH = 0.0;
-  uint face = 0u;
-  uint level = 0u;
-  uint64_t node = 0ul;
-  uint64_t r = faceDigits & 15ul;
-  for (;;) {
+  const uint64_t faceDigits = htFaceDigits(w.seed);
+  uint seed = w.seed;
+  uint face = w.face;
+  uint level = w.level;
+  uint64_t node = w.node;
+  uint64_t r = w.r;
+  float leafH = w.leafH;
+  bool finished = face == 12u;
+  uint step = 0u;
+  for (; step < steps && !finished; ++step) {
     bool descend = false;
     bool virtualCell = level > ht.order;
     // Candidates r, r + step, ... below acceptT are accepted in the cell
@@ -396,15 +421,16 @@ vec3 estimateHt(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout
     if (!virtualCell) {
       ++gHtNodes;
       HtNode n = htNode(level, uint(node), biased || level == ht.order);
-      float pm = level == 0u ? n.bound : min(pathMin[level - 1u], n.bound);
-      pathMin[level] = pm;
+      float pm = level == 0u ? n.bound : min(gHtPathMin[level - 1u], n.bound);
+      gHtPathMin[level] = pm;
       precise hreal ru = hreal(r) + ht.u;
       precise hreal t = htThreshold(n.bound);
       if (!(ru >= t)) {
         bool stopped = false;
         if (biased) {
           // HtPoint::stopEarly: a smooth node holding one acceptable candidate takes it, with the node's average.
-          precise float smoothBound = (1.0 + pc.htBiasedSmoothness) * n.brdfValue;
+          float margin = (ht.flags & HT_FLAG_BRDF_TABLE) != 0u ? HT_BRDF_TABLE_MARGIN : 1.0;
+          precise float smoothBound = (1.0 + pc.htBiasedSmoothness) * n.brdfValue * margin;
           precise float twice = 2.0 * n.envAvg;
           precise float product = n.envAvg * n.brdfValue;
           float h = min(pm, product);
@@ -467,12 +493,9 @@ vec3 estimateHt(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout
       for (;;) {
         precise hreal iu = i + ht.u;
         if (!(iu < acceptT)) break;
-        float first = rngNext(rng);
-        float second = rngNext(rng);
-        // visitVirtual draws dx then dy; stopEarly's pixToVec(.., next(), next())
-        // is evaluated right to left by g++: dy first.
-        float jx = averaged ? second : first;
-        float jy = averaged ? first : second;
+        // visitVirtual and stopEarly draw dx, then dy.
+        float jx = rngNext(rng);
+        float jy = rngNext(rng);
         precise hreal dx = (sx + hreal(jx)) / cells;
         precise hreal dy = (sy + hreal(jy)) / cells;
         hvec3 hp = pixToVecAt(cellOrder, cellPix, dx, dy);
@@ -507,10 +530,15 @@ vec3 estimateHt(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout
       node >>= 2;
       --level;
     }
-    if (face == 12u) break;
+    finished = face == 12u;
   }
-  directions += gHtSamples;
-  return vec3(gHtSum);
+  w.face = face;
+  w.level = level;
+  w.node = node;
+  w.r = r;
+  w.leafH = leafH;
+  taken = step;
+  return finished;
 }
 
 #endif

@@ -45,13 +45,12 @@ precise float powerHeuristic(float a, float b) {
   return a2 / (a2 + b2);
 }
 
-// The CPU draws u as glm::vec3 u(rng.next(), rng.next(), rng.next()), whose
-// arguments g++ evaluates right to left: u.z is the first draw, u.x the last.
+// Rng::next3: x first.
 vec3 drawBsdfU(inout uint rng) {
-  float first = rngNext(rng);
-  float second = rngNext(rng);
-  float third = rngNext(rng);
-  return vec3(third, second, first);
+  float x = rngNext(rng);
+  float y = rngNext(rng);
+  float z = rngNext(rng);
+  return vec3(x, y, z);
 }
 
 precise vec3 bsdfDirection(Shading sh, inout uint rng, out float pdf) {
@@ -70,22 +69,11 @@ precise vec3 bsdfDirection(Shading sh, inout uint rng, out float pdf) {
 #include "competitors.glsl"
 #include "ht.glsl"
 
-// estimateDirect for the baseline methods; counts directions drawn.
-vec3 estimateDirect(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, uint method, uint spp,
-                    inout uint rng, inout uint directions) {
-  Shading sh;
-  sh.frame = makeFrame(normal);
-  sh.woLocal = toLocal(sh.frame, wo);
-  sh.origin = offsetRayOrigin(position, normal);
-  sh.material = material;
-  if (method == HT_METHOD_RIS) return estimateRis(sh, spp, pc.risCandidates, rng, directions);
-  if (method == HT_METHOD_TSIS) return estimateTsis(sh, normal, wo, spp, rng, directions);
-  if (method == HT_METHOD_WIS || method == HT_METHOD_WIS_BIASED)
-    return estimateWis(sh, normal, wo, spp, method == HT_METHOD_WIS_BIASED, rng, directions);
-  if (method >= HT_METHOD_HT && method <= HT_METHOD_HT_VIS_BIASED)
-    return estimateHt(sh, position, normal, wo, spp, rng, directions);
-  precise accvec3 sum = accvec3(0.0);
-  for (uint i = 0u; i < spp; ++i) {
+// estimateDirect for the baseline methods, samples [begin, end).
+uint baselineSamples(Shading sh, uint method, uint begin, uint end, inout uint rng, inout accvec3 sum,
+                     inout uint directions) {
+  uint i = begin;
+  for (; i < end; ++i) {
     precise vec3 est = vec3(0.0);
     if (method == HT_METHOD_UNIFORM) {
       float u0 = rngNext(rng);
@@ -126,10 +114,145 @@ vec3 estimateDirect(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, u
       }
       directions += 2u;
     }
-    sum += accvec3(est);
+    precise accvec3 total = sum + accvec3(est);
+    sum = total;
   }
-  precise accvec3 mean = sum / accvec3(max(spp, 1u));
+  return i - begin;
+}
+
+bool isHtMethod(uint method) { return method >= HT_METHOD_HT && method <= HT_METHOD_HT_VIS_BIASED; }
+bool isWisMethod(uint method) { return method == HT_METHOD_WIS || method == HT_METHOD_WIS_BIASED; }
+
+#if HT_FP64
+accvec3 sumFromBits(uint64_t b[3]) {
+  return accvec3(uint64BitsToDouble(b[0]), uint64BitsToDouble(b[1]), uint64BitsToDouble(b[2]));
+}
+void sumToBits(accvec3 v, out uint64_t b[3]) {
+  b[0] = doubleBitsToUint64(v.x);
+  b[1] = doubleBitsToUint64(v.y);
+  b[2] = doubleBitsToUint64(v.z);
+}
+hreal hrealFromBits(uint64_t b) { return uint64BitsToDouble(b); }
+uint64_t hrealToBits(hreal v) { return doubleBitsToUint64(v); }
+#else
+accvec3 sumFromBits(uint64_t b[3]) {
+  return accvec3(uintBitsToFloat(uint(b[0])), uintBitsToFloat(uint(b[1])), uintBitsToFloat(uint(b[2])));
+}
+void sumToBits(accvec3 v, out uint64_t b[3]) {
+  b[0] = uint64_t(floatBitsToUint(v.x));
+  b[1] = uint64_t(floatBitsToUint(v.y));
+  b[2] = uint64_t(floatBitsToUint(v.z));
+}
+hreal hrealFromBits(uint64_t b) { return uintBitsToFloat(uint(b)); }
+uint64_t hrealToBits(hreal v) { return uint64_t(floatBitsToUint(v)); }
+#endif
+
+// The first dispatch of a tile: the draws estimateDirect makes before its
+// samples. Leaves st.done = 1 when there is nothing to sample.
+void beginPixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 normal, vec3 wo, uint method) {
+  uint rng = st.rng;
+  if (isHtMethod(method)) {
+    HtWalk w;
+    bool work = htBegin(sh, position, normal, wo, pc.spp, rng, w);
+    st.done = work ? 0u : 1u;
+    st.htSeed = w.seed;
+    st.htFace = w.face;
+    st.htLevel = w.level;
+    st.htNode = w.node;
+    st.htR = w.r;
+    st.htLeafH = w.leafH;
+    st.htS = hrealToBits(ht.s);
+    st.htU = hrealToBits(ht.u);
+  } else if (method == HT_METHOD_RIS) {
+    st.done = scene.envHasLight == 0u ? 1u : 0u;
+  } else if (method == HT_METHOD_TSIS || isWisMethod(method)) {
+    bool work = method == HT_METHOD_TSIS ? tsisPrepare(sh, normal, wo) : wisPrepare(sh, normal, wo);
+    st.done = work ? 0u : 1u;
+    if (work) {
+      st.shift.x = rngNextUint(rng);
+      st.shift.y = rngNextUint(rng);
+    }
+  }
+  st.rng = rng;
+}
+
+// One batch of the pixel's estimate: pc.batchLimit samples or HT steps.
+// False when its loop stopped before it should have (the driver's limit).
+bool continuePixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 normal, vec3 wo, uint method,
+                   bool prepared) {
+  uint rng = st.rng;
+  uint directions = st.directions;
+  accvec3 sum = sumFromBits(st.sum);
+  bool complete = true;
+  if (isHtMethod(method)) {
+    if (!prepared) {
+      htInit(position, normal, wo, sh.material);
+      ht.s = hrealFromBits(st.htS);
+      ht.u = hrealFromBits(st.htU);
+    }
+    for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) gHtPathMin[l] = st.htPathMin[l];
+    HtWalk w;
+    w.seed = st.htSeed;
+    w.face = st.htFace;
+    w.level = st.htLevel;
+    w.node = st.htNode;
+    w.r = st.htR;
+    w.leafH = st.htLeafH;
+    gHtSum = sum;
+    gHtSamples = directions;
+    uint taken;
+    bool finished = htSteps(sh, w, pc.batchLimit, rng, taken);
+    complete = finished || taken == pc.batchLimit;
+    sum = gHtSum;
+    directions = gHtSamples;
+    st.htFace = w.face;
+    st.htLevel = w.level;
+    st.htNode = w.node;
+    st.htR = w.r;
+    st.htLeafH = w.leafH;
+    for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) st.htPathMin[l] = gHtPathMin[l];
+    st.done = finished ? 1u : 0u;
+  } else {
+    uint begin = st.next;
+    uint end = min(pc.spp, begin + pc.batchLimit);
+    uint done = end - begin;
+    if (method == HT_METHOD_RIS) {
+      done = risSamples(sh, begin, end, pc.risCandidates, rng, sum, directions);
+    } else if (method == HT_METHOD_TSIS) {
+      if (prepared || tsisPrepare(sh, normal, wo)) done = tsisSamples(sh, begin, end, st.shift, rng, sum, directions);
+    } else if (isWisMethod(method)) {
+      if (prepared || wisPrepare(sh, normal, wo))
+        done = wisSamples(sh, begin, end, st.shift, method == HT_METHOD_WIS_BIASED, rng, sum, directions);
+    } else {
+      done = baselineSamples(sh, method, begin, end, rng, sum, directions);
+    }
+    complete = done == end - begin;
+    st.next = end;
+    st.done = end >= pc.spp ? 1u : 0u;
+  }
+  st.rng = rng;
+  st.directions = directions;
+  sumToBits(sum, st.sum);
+  return complete;
+}
+
+// The estimate of a finished pixel: the mean of its samples (HT: the sum of
+// its weighted samples).
+vec3 finishPixel(GpuPixelState st, uint method) {
+  accvec3 sum = sumFromBits(st.sum);
+  if (isHtMethod(method)) return vec3(sum);
+  precise accvec3 mean = sum / accvec3(max(pc.spp, 1u));
   return vec3(mean);
+}
+
+// Mesa's llvmpipe ends every loop of an invocation once its loops have run
+// 65535 iterations in all (gallivm's loop limiter). A loop of a few
+// iterations, run last, tells whether that happened: the host then makes
+// the batches smaller.
+bool loopsWereCut() {
+  uint n = 0u;
+  for (uint i = 0u; i < pc.canaryLoops; ++i) n += 1u + (i & pc.canaryZero);
+  return n != pc.canaryLoops;
 }
 
 void main() {
@@ -137,12 +260,14 @@ void main() {
   if (local.x >= pc.tileWidth || local.y >= pc.tileHeight) return;
   uint x = pc.tileX + local.x;
   uint y = pc.tileY + local.y;
+  uint slot = local.y * pc.tileWidth + local.x;
   GpuPixel result;
+  result.radiance = vec3(0.0);
   result.shaded = 0u;
   result.directions = 0u;
   result.shadowRays = 0u;
   result.htNodes = 0u;
-  result.reserved = 0u;
+  result.status = HT_PIXEL_DONE;
 
   precise float px = float(x) + 0.5;
   precise float py = float(y) + 0.5;
@@ -151,16 +276,47 @@ void main() {
   if (!intersectScene(ray, 0.0, kInfinity, hit)) {
     result.radiance = envEval(ray.dir);
   } else {
-    uint rng = rngInit(pc.seed, y * pc.width + x);  // pixelStream(x, y, width)
-    uint directions = 0u;
+    uint method = kSpecializedMethod == HT_METHOD_ANY ? pc.method : kSpecializedMethod;
+    GpuMaterial material = materials[hit.material];
+    vec3 wo = -ray.dir;
+    Shading sh;
+    sh.frame = makeFrame(hit.normal);
+    sh.woLocal = toLocal(sh.frame, wo);
+    sh.origin = offsetRayOrigin(hit.position, hit.normal);
+    sh.material = material;
     gHtMaterial = hit.material;
-    result.radiance = estimateDirect(hit.position, hit.normal, -ray.dir, materials[hit.material],
-                                     kSpecializedMethod == HT_METHOD_ANY ? pc.method : kSpecializedMethod,
-                                     pc.spp, rng, directions);
+    GpuPixelState st;
+    bool prepared = pc.batch == 0u;
+    if (prepared) {
+      st.rng = rngInit(pc.seed, y * pc.width + x);  // pixelStream(x, y, width)
+      st.next = 0u;
+      st.directions = 0u;
+      st.shadowRays = 0u;
+      st.htNodes = 0u;
+      st.done = 0u;
+      st.shift = uvec2(0u);
+      sumToBits(accvec3(0.0), st.sum);
+      for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) st.htPathMin[l] = 0.0;
+      beginPixel(st, sh, hit.position, hit.normal, wo, method);
+      gShadowRays = 0u;
+      gHtNodes = 0u;
+    } else {
+      st = pc.pixelState.s[slot];
+      gShadowRays = st.shadowRays;
+      gHtNodes = st.htNodes;
+    }
+    if (st.done == 0u && !continuePixel(st, sh, hit.position, hit.normal, wo, method, prepared))
+      result.status |= HT_PIXEL_LOOPS_CUT;
+    st.shadowRays = gShadowRays;
+    st.htNodes = gHtNodes;
+    pc.pixelState.s[slot] = st;
+    result.radiance = st.done != 0u ? finishPixel(st, method) : vec3(0.0);
     result.shaded = 1u;
-    result.directions = directions;
-    result.shadowRays = gShadowRays;
-    result.htNodes = gHtNodes;
+    result.directions = st.directions;
+    result.shadowRays = st.shadowRays;
+    result.htNodes = st.htNodes;
+    result.status = (result.status & HT_PIXEL_LOOPS_CUT) | (st.done != 0u ? HT_PIXEL_DONE : 0u);
   }
-  pixels[local.y * pc.tileWidth + local.x] = result;
+  if (loopsWereCut()) result.status |= HT_PIXEL_LOOPS_CUT;
+  pixels[slot] = result;
 }

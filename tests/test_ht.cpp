@@ -323,7 +323,7 @@ TEST(Ht, UnbiasedAgainstBruteForce) {
 // and falls with the sample count towards the unbiased result, because more
 // samples push acceptance below the smooth nodes, where contributions are
 // exact.
-TEST(Ht, BiasedConvergesToUnbiased) {
+TEST(HtSlow, BiasedConvergesToUnbiased) {
   const int order = 5;
   std::vector<ShadingSetup> setups;
   setups.push_back(makeSetup("diffuse-sunrise", sunriseAt(order), lambert(0.8f), {0.3f, 1.0f, 0.2f}));
@@ -333,11 +333,15 @@ TEST(Ht, BiasedConvergesToUnbiased) {
   const int ns[] = {4, 16, 64, 256};
   for (const ShadingSetup& s : setups) {
     const double ref = bruteForceIntegral(s, 16).g;
-    for (Method m : {Method::HtBiased, Method::HtVisBiased}) {
+    for (Method m : {Method::HtBiased, Method::HtVisBiased})
+    for (MethodOptions::BrdfBounds bounds : {MethodOptions::BrdfBounds::Analytic, MethodOptions::BrdfBounds::Table}) {
+      const bool table = bounds == MethodOptions::BrdfBounds::Table;
+      MethodOptions mo;
+      mo.brdfBounds = bounds;
       double previousMse = INFINITY, previousAveraged = 1.0;
       for (int n : ns) {
         const int batches = 400000 / n;
-        MeanAndError e = repeatedEstimates(s, m, batches, n, 777);
+        MeanAndError e = repeatedEstimates(s, m, batches, n, 777, mo);
         double bias = e.mean.g - ref;
         double variance = e.stdError.g * e.stdError.g * batches;
         double mse = bias * bias + variance;
@@ -345,6 +349,7 @@ TEST(Ht, BiasedConvergesToUnbiased) {
         HtOptions opt;
         opt.biased = true;
         opt.visibility = m == Method::HtVisBiased;
+        opt.brdfTable = table;
         ShadingPoint sp = s.sp;
         sp.material = &s.scene.materials[0];
         HtPoint ht(s.scene, sp, opt);
@@ -360,14 +365,18 @@ TEST(Ht, BiasedConvergesToUnbiased) {
           total += samples.size();
         }
         double share = double(averaged) / double(total);
-        EXPECT_LE(share, previousAveraged) << s.name << " n " << n;
+        // With more samples the traversal goes deeper: the share does not grow.
+        EXPECT_LE(share, previousAveraged + 0.02) << s.name << " n " << n;
+        // The biased methods stop early somewhere, with either bound kind.
+        EXPECT_GT(share, 0.01) << s.name << " " << methodName(m) << (table ? " table" : " analytic") << " n " << n;
         previousAveraged = share;
-        RecordProperty(s.name + "/" + methodName(m) + "/n" + std::to_string(n),
-                       std::to_string(bias / ref) + " rel bias, " + std::to_string(mse / (ref * ref)) + " relMSE, " +
-                           std::to_string(share) + " averaged");
-        // The BRDF value used differs from the exact one by at most the
-        // smoothness threshold (25%).
-        EXPECT_LT(std::abs(bias), 0.25 * ref + 4.0 * e.stdError.g) << s.name << " n " << n;
+        std::printf("[ biased   ] %-15s %-13s %-8s n %3d: bias %+.4f (%.1f se), relMSE %.2e, averaged %.3f\n",
+                    s.name.c_str(), methodName(m), table ? "table" : "analytic", n, bias / ref,
+                    bias / e.stdError.g, mse / (ref * ref), share);
+        // The BRDF's value at a smooth node's centre is within 25 % of every
+        // value over the node, and errors of both signs average out: the
+        // bias stays far below that (at most 0.7 % measured).
+        EXPECT_LT(std::abs(bias), 0.02 * ref + 4.0 * e.stdError.g) << s.name << " n " << n;
         EXPECT_LT(mse, previousMse) << s.name << " " << methodName(m) << ": error did not fall at n = " << n;
         previousMse = mse;
         if (n == ns[3]) {
