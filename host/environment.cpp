@@ -4,7 +4,10 @@
 #include <chrono>
 #include <cmath>
 #include <fmt/format.h>
+#include <functional>
+#include <iterator>
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "healpix.h"
@@ -110,27 +113,200 @@ EnvironmentStats sanitizeEnvironmentImage(ImageRGB& image, const std::string& na
   return stats;
 }
 
-Environment environmentFromEquirect(const ImageRGB& image, int order, float yawDegrees, float scale,
-                                    int supersample) {
+namespace {
+
+// A HEALPix pixel edge crossing a band of latitude: its azimuth, as
+// tt = phi / (pi/2), at the band's top and bottom, and its mean over the band
+// (which sorts the edges).
+struct Edge {
+  double top, bottom, mean;
+};
+
+// The pixel edges crossing the band [zBottom, zTop], one period of them in
+// ascending order, for a band that holds no pixel corner. They are the steps
+// of healpix::zphiToPix: in the equatorial zone those of
+// floor(fn (0.5 + tt) -/+ fn 0.75 z), straight in (tt, z); in the polar caps
+// those of floor(tp t) and floor((1 - tp) t), t = fn sqrt(3 (1 - |z|)),
+// within each quarter, which curve: there the edge is replaced by a straight
+// one with the curve's mean, so that every piece keeps its exact area.
+// `zPixel` is a latitude in the band at which the pieces between the edges'
+// means lie in their pixels.
+void bandEdges(int order, double zTop, double zBottom, std::vector<Edge>& edges, std::vector<Edge>& up,
+               std::vector<Edge>& down, double& zPixel) {
+  const double fn = double(int64_t(1) << order);
+  up.clear();
+  down.clear();
+  edges.clear();
+  const double zMid = 0.5 * (zTop + zBottom);
+  zPixel = zMid;
+  if (std::abs(zMid) <= 2.0 / 3.0) {
+    for (int side = 0; side < 2; ++side) {
+      const double sign = side == 0 ? 0.75 : -0.75;
+      const double c = sign * fn * zMid;
+      for (int64_t k = int64_t(std::floor(0.5 * fn - c)); k <= int64_t(4.5 * fn - c) + 1; ++k) {
+        const double mean = (double(k) + c) / fn - 0.5;
+        if (mean < 0.0 || mean >= 4.0) continue;
+        const double top = (double(k) + sign * fn * zTop) / fn - 0.5;
+        const double bottom = (double(k) + sign * fn * zBottom) / fn - 0.5;
+        (side == 0 ? up : down).push_back({top, bottom, mean});
+      }
+    }
+  } else {
+    auto s = [](double z) { return std::sqrt(3.0 * (1.0 - std::abs(z))); };
+    const double sTop = s(zTop), sBottom = s(zBottom);
+    // Mean of 1 / s over the band, from the integral of dz / s = -2/3 ds.
+    const double invMean = (2.0 / 3.0) * std::abs(sTop - sBottom) / (zTop - zBottom);
+    zPixel = std::copysign(1.0 - 1.0 / (3.0 * invMean * invMean), zMid);
+    const double t = fn / invMean;
+    const double invTop = sTop > 0.0 ? 1.0 / (fn * sTop) : 0.0, invBottom = sBottom > 0.0 ? 1.0 / (fn * sBottom) : 0.0;
+    for (int q = 0; q < 4; ++q) {
+      up.push_back({double(q), double(q), double(q)});
+      for (int64_t k = 1; double(k) < t; ++k) {
+        const double shift = k * (invMean / fn - 0.5 * (invTop + invBottom));
+        up.push_back({q + k * invTop + shift, q + k * invBottom + shift, q + k * invMean / fn});
+      }
+      for (int64_t k = int64_t(std::ceil(t)); k >= 1; --k) {
+        if (!(double(k) < t)) continue;
+        const double shift = k * (invMean / fn - 0.5 * (invTop + invBottom));
+        down.push_back({q + 1.0 - k * invTop - shift, q + 1.0 - k * invBottom - shift, q + 1.0 - k * invMean / fn});
+      }
+    }
+  }
+  std::merge(up.begin(), up.end(), down.begin(), down.end(), std::back_inserter(edges),
+             [](const Edge& a, const Edge& b) { return a.mean < b.mean; });
+}
+
+}  // namespace
+
+// Each texel row is cut into bands of latitude at every texel-row boundary
+// and at every z where HEALPix pixels have corners. Inside such a band the
+// pixel edges do not cross, and the piece of the band between two
+// neighbouring edges lies in one pixel; the texel-constant map is integrated
+// over it exactly (along straight edges the integral of the azimuthal
+// cumulative sum is a second cumulative sum). Equatorial pixel edges are
+// straight, so there every pixel gets its exact integral; polar edges are
+// replaced by chords with the same mean, which keeps every pixel's area and
+// moves energy only across texel edges near the pixel's edges. The total is
+// kept exactly.
+Environment environmentFromEquirect(const ImageRGB& image, int order, float yawDegrees, float scale) {
   Environment env;
   env.order = order;
-  setYaw(env, 0.0f);
-  env.radiance.resize(healpix::pixelCount(order));
-  const int n = std::max(1, supersample);
-  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, env.radiance.size()), [&](const auto& range) {
-    for (uint64_t p = range.begin(); p != range.end(); ++p) {
-      glm::dvec3 sum(0.0);
-      for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) {
-          glm::vec3 d = env.direction(order, p, (i + 0.5f) / n, (j + 0.5f) / n);
-          double u, v;
-          equirectUV(d, u, v);
-          int x = std::min(int(u * image.width), image.width - 1);
-          int y = std::min(int(v * image.height), image.height - 1);
-          sum += glm::dvec3(image.at(x, y));
+  const int width = image.width, height = image.height;
+  const int64_t n = int64_t(1) << order;
+
+  // Band boundaries in z, descending from 1 to -1, each band with its texel row.
+  std::vector<double> levels;
+  for (int64_t m = 1; m < n; ++m) levels.push_back(1.0 - double(m * m) / double(3 * n * n));
+  const size_t polar = levels.size();
+  for (size_t i = 0; i < polar; ++i) levels.push_back(-levels[i]);
+  for (int64_t m = 0; m <= 2 * n; ++m) levels.push_back((2.0 / 3.0) * double(n - m) / double(n));
+  for (int y = 1; y < height; ++y) levels.push_back(std::cos(kPiD * y / height));
+  std::sort(levels.begin(), levels.end(), std::greater<double>());
+  levels.push_back(-1.0);
+  struct Band {
+    double zTop, zBottom;
+    int row;
+  };
+  std::vector<Band> bands;
+  double zTop = 1.0;
+  int row = 0;
+  for (double z : levels) {
+    if (!(z < zTop)) continue;
+    while (row + 1 < height && zTop <= std::cos(kPiD * (row + 1) / height)) ++row;
+    bands.push_back({zTop, z, row});
+    zTop = z;
+  }
+
+  std::vector<glm::dvec3> energy(healpix::pixelCount(order), glm::dvec3(0.0));
+  const double dphi = 2.0 * kPiD / width;
+  struct Piece {
+    uint64_t pixel;
+    glm::dvec3 energy;
+  };
+  // Bands are integrated in parallel a wave at a time (small enough to stay
+  // in cache) and their pieces added in a fixed order, so the result does
+  // not depend on the thread count.
+  constexpr size_t kWave = 32;
+  std::vector<std::vector<Piece>> pieces(kWave);
+  struct Scratch {
+    // Over a row, in texel units t: first[x] = integral of L over [0, x],
+    // second[x] = integral of that over [0, x].
+    std::vector<glm::dvec3> first, second;
+    std::vector<Edge> edges, up, down;
+    int row = -1;
+  };
+  tbb::enumerable_thread_specific<Scratch> scratch;
+  for (size_t wave = 0; wave < bands.size(); wave += kWave) {
+    const size_t count = std::min(kWave, bands.size() - wave);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 4), [&](const auto& range) {
+      Scratch& sc = scratch.local();
+      std::vector<glm::dvec3>& first = sc.first;
+      std::vector<glm::dvec3>& second = sc.second;
+      std::vector<Edge>& edges = sc.edges;
+      first.resize(size_t(width) + 1);
+      second.resize(size_t(width) + 1);
+      for (size_t b = range.begin(); b != range.end(); ++b) {
+        const Band& band = bands[wave + b];
+        const glm::vec3* texels = &image.at(0, band.row);
+        if (band.row != sc.row) {
+          sc.row = band.row;
+          for (int x = 0; x < width; ++x) {
+            first[x + 1] = first[x] + glm::dvec3(texels[x]);
+            second[x + 1] = second[x] + first[x] + 0.5 * glm::dvec3(texels[x]);
+          }
         }
-      env.radiance[p] = glm::vec3(sum * (double(scale) / (n * n)));
-    }
+        // The two cumulative sums at t in [-W, W), continued periodically.
+        auto at = [&](double t, glm::dvec3& f, glm::dvec3& g) {
+          const bool wrapped = t < 0.0;
+          if (wrapped) t += width;
+          const int x = std::clamp(int(t), 0, width - 1);
+          const double d = t - x;
+          const glm::dvec3 l(texels[x]);
+          f = first[x] + d * l;
+          g = second[x] + d * first[x] + 0.5 * d * d * l;
+          if (wrapped) {
+            f -= first[width];
+            g -= second[width] + (t - width) * first[width];
+          }
+        };
+        // Integral over the band's z of L integrated in azimuth up to the
+        // edge, which is straight: the map's u = 0.5 - tt / 4.
+        const double dz = band.zTop - band.zBottom;
+        auto integral = [&](const Edge& e, double shift) {
+          const double tTop = (0.5 - 0.25 * (e.top + shift)) * width;
+          const double tBottom = (0.5 - 0.25 * (e.bottom + shift)) * width;
+          glm::dvec3 fTop, gTop, fBottom, gBottom;
+          if (std::abs(tTop - tBottom) < 1e-3) {
+            at(0.5 * (tTop + tBottom), fTop, gTop);
+            return fTop * dz;
+          }
+          at(tTop, fTop, gTop);
+          at(tBottom, fBottom, gBottom);
+          return (gTop - gBottom) * (dz / (tTop - tBottom));
+        };
+        double zPixel;
+        bandEdges(order, band.zTop, band.zBottom, edges, sc.up, sc.down, zPixel);
+        std::vector<Piece>& out = pieces[b];
+        out.clear();
+        glm::dvec3 previous = integral(edges[0], 0.0);
+        for (size_t e = 1; e <= edges.size(); ++e) {
+          const Edge& edge = edges[e % edges.size()];
+          const double shift = e == edges.size() ? 4.0 : 0.0;
+          const glm::dvec3 next = integral(edge, shift);
+          const double phi = 0.25 * kPiD * (edges[e - 1].mean + edge.mean + shift);
+          out.push_back({healpix::zphiToPix(order, zPixel, phi), (previous - next) * dphi});
+          previous = next;
+        }
+      }
+    });
+    for (size_t b = 0; b < count; ++b)
+      for (const Piece& p : pieces[b]) energy[p.pixel] += p.energy;
+  }
+
+  env.radiance.resize(energy.size());
+  const double toRadiance = double(scale) / healpix::pixelSolidAngle(order);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, energy.size()), [&](const auto& range) {
+    for (size_t p = range.begin(); p != range.end(); ++p) env.radiance[p] = glm::vec3(energy[p] * toRadiance);
   });
   setYaw(env, yawDegrees);
   finish(env);

@@ -63,10 +63,12 @@ void equirectUV(const glm::vec3& dir, double& u, double& v);
 // negatives to 0.
 EnvironmentStats sanitizeEnvironmentImage(ImageRGB& image, const std::string& name, bool repairNonFinite = false);
 
-// Resamples an equirectangular map into HEALPix at 2^order with
-// supersample^2 area-uniform points per pixel.
-Environment environmentFromEquirect(const ImageRGB& image, int order, float yawDegrees, float scale,
-                                    int supersample = 4);
+// Resamples an equirectangular map into HEALPix at 2^order, conserving
+// energy: each HEALPix pixel holds the average over the pixel of the map
+// taken as constant over each texel (up to quadrature error in latitude,
+// which shrinks with the pixels and texels), and the map's total power
+// (sum of texel radiance x texel solid angle) is kept exactly.
+Environment environmentFromEquirect(const ImageRGB& image, int order, float yawDegrees, float scale);
 Environment environmentFromPixels(int order, std::vector<glm::vec3> radiance, float yawDegrees = 0.0f);
 Environment constantEnvironment(int order, const glm::vec3& value);
 
