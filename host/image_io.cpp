@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <new>
+#include <thread>
 
 #include <fmt/format.h>
 #include <OpenEXR/Iex.h>
@@ -356,10 +357,12 @@ ImageRGB readExrStream(Imf::IStream& stream, uint64_t size, const std::string& n
     image.height = dw.max.y - dw.min.y + 1;
     const size_t width = size_t(image.width);
     const size_t total = width * size_t(image.height);
-    // Pixels are allocated as rows are decoded, so a file that claims a huge
-    // image but holds little fails before it costs much memory. Up front we
-    // reserve what the file's size makes plausible.
-    image.pixels.reserve(std::min<uint64_t>(total, size * 64 + width * 64));
+    // Pixels are filled in as rows are decoded, so a file that claims a huge
+    // image but holds little fails before it touches much memory. Reserving
+    // only takes address space, and growing the vector would copy every
+    // pixel: up front we reserve up to 768 MiB, more if the file's size
+    // makes it plausible (ZIP packs a smooth sky several hundred to one).
+    image.pixels.reserve(std::min<uint64_t>(total, std::max<uint64_t>(size * 64 + width * 64, uint64_t(1) << 26)));
     constexpr int kStrip = 64;
     stream.clear();
     stream.seekg(0);
@@ -383,7 +386,8 @@ ImageRGB readExrStream(Imf::IStream& stream, uint64_t size, const std::string& n
       return image;
     }
 
-    Imf::InputFile file(stream);
+    // Chunks of scan lines are decompressed on OpenEXR's worker threads.
+    Imf::InputFile file(stream, int(std::max(1u, std::thread::hardware_concurrency())));
     // OpenEXR converts half/uint channels to float and fills each strip of
     // rows straight into the vec3 array (three interleaved floats per pixel).
     const size_t xs = sizeof(glm::vec3), ys = xs * width;
