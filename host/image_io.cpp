@@ -23,6 +23,7 @@
 #include <OpenEXR/ImfVersion.h>
 #include <png.h>
 
+#include "output_file.h"
 #include "sampling.h"
 
 namespace ht {
@@ -508,18 +509,19 @@ class CheckedOStream final : public Imf::OStream {
 
 }  // namespace
 
-void writeExr(const std::string& path, const ImageRGB& image) {
+void writeExr(OutputFile& file, const ImageRGB& image) {
+  const std::string& path = file.target();
   if (image.width <= 0 || image.height <= 0 || image.pixels.size() != size_t(image.width) * image.height)
-    throw Error("cannot write " + path + ": image has inconsistent size");
+    throw Error(oneLine("cannot write " + path + ": image has inconsistent size"));
   std::string error;
   try {
     errno = 0;
-    CheckedOStream stream(path);
+    CheckedOStream stream(file.path());
     try {
       Imf::Header header(image.width, image.height);
       header.compression() = Imf::ZIP_COMPRESSION;
       for (const char* name : {"R", "G", "B"}) header.channels().insert(name, Imf::Channel(Imf::FLOAT));
-      Imf::OutputFile file(stream, header);
+      Imf::OutputFile exr(stream, header);
       // OpenEXR only reads through the frame buffer, the cast is safe.
       char* base = const_cast<char*>(reinterpret_cast<const char*>(image.pixels.data()));
       const size_t xs = sizeof(glm::vec3), ys = xs * image.width;
@@ -527,8 +529,8 @@ void writeExr(const std::string& path, const ImageRGB& image) {
       fb.insert("R", Imf::Slice(Imf::FLOAT, base + 0 * sizeof(float), xs, ys));
       fb.insert("G", Imf::Slice(Imf::FLOAT, base + 1 * sizeof(float), xs, ys));
       fb.insert("B", Imf::Slice(Imf::FLOAT, base + 2 * sizeof(float), xs, ys));
-      file.setFrameBuffer(fb);
-      file.writePixels(image.height);
+      exr.setFrameBuffer(fb);
+      exr.writePixels(image.height);
     } catch (const std::exception& e) {
       error = e.what();
     }
@@ -539,32 +541,54 @@ void writeExr(const std::string& path, const ImageRGB& image) {
     if (error.empty()) error = e.what();
   }
   if (!error.empty()) {
-    // Leave no partial image behind (but never touch anything but a regular file).
-    std::error_code ec;
-    if (std::filesystem::is_regular_file(std::filesystem::symlink_status(path, ec))) std::filesystem::remove(path, ec);
+    file.discard();  // no partial image left behind
     throw Error(oneLine("cannot write " + path + ": " + error));
   }
 }
 
-void writePng(const std::string& path, const ImageRGB& image, float exposure) {
+void writeExr(const std::string& path, const ImageRGB& image) {
+  OutputFile file(path);
+  writeExr(file, image);
+  file.commit();
+}
+
+void writePng(OutputFile& file, const ImageRGB& image, float exposure) {
+  const std::string& path = file.target();
   if (image.width <= 0 || image.height <= 0 || image.pixels.size() != size_t(image.width) * image.height)
-    throw Error("cannot write " + path + ": image has inconsistent size");
+    throw Error(oneLine("cannot write " + path + ": image has inconsistent size"));
   const float scale = std::exp2(exposure);
   std::vector<uint8_t> bytes(image.pixels.size() * 3);
   for (size_t i = 0; i < image.pixels.size(); ++i)
     for (int c = 0; c < 3; ++c) bytes[3 * i + c] = encodeSrgb8(image.pixels[i][c] * scale);
 
   // libpng's simplified API reports errors through the struct instead of
-  // longjmp, which would skip C++ destructors.
+  // longjmp, which would skip C++ destructors. It encodes into memory so
+  // that the file is written (and checked) by writeBytes.
   png_image png;
   std::memset(&png, 0, sizeof png);
   png.version = PNG_IMAGE_VERSION;
   png.width = png_uint_32(image.width);
   png.height = png_uint_32(image.height);
   png.format = PNG_FORMAT_RGB;
-  if (!png_image_write_to_file(&png, path.c_str(), 0, bytes.data(), 3 * image.width, nullptr))
-    throw Error(oneLine("cannot write " + path + ": " + png.message));
+  png_alloc_size_t size = 0;
+  std::vector<uint8_t> encoded;
+  if (png_image_write_to_memory(&png, nullptr, &size, 0, bytes.data(), 3 * image.width, nullptr)) {
+    encoded.resize(size);
+    if (!png_image_write_to_memory(&png, encoded.data(), &size, 0, bytes.data(), 3 * image.width, nullptr)) size = 0;
+  }
+  if (size == 0) {
+    const std::string message = png.message[0] ? png.message : "PNG encoding failed";
+    png_image_free(&png);
+    throw Error(oneLine("cannot write " + path + ": " + message));
+  }
   png_image_free(&png);
+  writeBytes(file, encoded.data(), size);
+}
+
+void writePng(const std::string& path, const ImageRGB& image, float exposure) {
+  OutputFile file(path);
+  writePng(file, image, exposure);
+  file.commit();
 }
 
 ImageError compareImages(const ImageRGB& ref, const ImageRGB& test) {

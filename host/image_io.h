@@ -38,10 +38,15 @@ constexpr int kMaxImageDimension = 32768;
 ImageRGB readExr(const std::string& path);
 // The same from `size` bytes in memory; `name` stands for the file in messages.
 ImageRGB readExrFromMemory(const void* data, size_t size, const std::string& name);
-// Writes linear float RGB (uncompressed-size ZIP). Throws ht::Error.
+class OutputFile;
+// Writes linear float RGB (uncompressed-size ZIP). Throws ht::Error. The
+// path form replaces the file whole (host/output_file.h); the OutputFile
+// form fills the temporary and leaves the commit to the caller.
 void writeExr(const std::string& path, const ImageRGB& image);
+void writeExr(OutputFile& file, const ImageRGB& image);
 // Writes an 8-bit sRGB preview: value * 2^exposure, clamped, sRGB encoded.
 void writePng(const std::string& path, const ImageRGB& image, float exposure = 0.0f);
+void writePng(OutputFile& file, const ImageRGB& image, float exposure = 0.0f);
 
 // Error of `test` against `ref` over all pixels and channels.
 struct ImageError {

@@ -3,8 +3,10 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -14,6 +16,7 @@
 #include <tbb/info.h>
 
 #include "gpu_render.h"
+#include "output_file.h"
 #include "render.h"
 #include "scene.h"
 #include "wis.h"
@@ -60,14 +63,6 @@ std::string resolveScene(const std::string& path) {
   if (fs::exists(path) || fs::path(path).is_absolute()) return path;
   fs::path alt = fs::path(HT_SOURCE_DIR) / path;
   return fs::exists(alt) ? alt.string() : path;
-}
-
-void checkWritable(const std::string& path) {
-  fs::path p(path);
-  fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
-  if (!fs::is_directory(dir)) throw Error(fmt::format("{}: output directory does not exist", dir.string()));
-  if (access(dir.c_str(), W_OK) != 0) throw Error(fmt::format("{}: output directory is not writable", dir.string()));
-  if (fs::exists(p) && access(p.c_str(), W_OK) != 0) throw Error(fmt::format("{}: output file is not writable", path));
 }
 
 // --device gpu: the Vulkan path, or a one-line error. auto: the Vulkan path
@@ -140,9 +135,15 @@ int runRender(const RenderOptions& o) {
     throw Error("--gpu-index picks a Vulkan device: it conflicts with --device cpu");
   if (fs::path(o.out).extension() != ".exr") throw Error(fmt::format("{}: --out must end in .exr", o.out));
   fs::path png = fs::path(o.out).replace_extension(".png");
-  checkWritable(o.out);
-  checkWritable(png.string());
-  if (!o.stats.empty()) checkWritable(o.stats);
+  std::vector<std::pair<std::string, std::string>> outputs = {{"--out", o.out}, {"the PNG preview", png.string()}};
+  if (!o.stats.empty()) outputs.emplace_back("--stats", o.stats);
+  checkOutputPaths(outputs);
+  // Each output is written to a temporary next to it and renamed into place
+  // only once all are complete; creating them now proves the directories
+  // writable before anything is rendered.
+  OutputFile exrFile(o.out), pngFile(png.string());
+  std::optional<OutputFile> statsFile;
+  if (!o.stats.empty()) statsFile.emplace(o.stats);
 
   // Bad input is refused before a device is opened (which may compile shaders).
   auto t0 = std::chrono::steady_clock::now();
@@ -200,8 +201,8 @@ int runRender(const RenderOptions& o) {
   }
 
   t0 = std::chrono::steady_clock::now();
-  writeExr(o.out, r.image);
-  writePng(png.string(), r.image, o.exposure);
+  writeExr(exrFile, r.image);
+  writePng(pngFile, r.image, o.exposure);
   double tWrite = secondsSince(t0);
 
   double shaded = double(std::max<uint64_t>(r.shadedPixels, 1));
@@ -241,11 +242,15 @@ int runRender(const RenderOptions& o) {
     stats["seconds"]["upload"] = tUpload;
     stats["seconds"]["gpu"] = tGpu >= 0.0 ? nlohmann::json(tGpu) : nlohmann::json(nullptr);
   }
-  if (!o.stats.empty()) {
-    std::ofstream f(o.stats);
-    f << stats.dump(2) << "\n";
-    if (!f) throw Error(fmt::format("{}: cannot write stats", o.stats));
+  if (statsFile) {
+    const std::string text = stats.dump(2) + "\n";
+    writeBytes(*statsFile, text.data(), text.size());
   }
+  // All or nothing as far as rename allows: every output is complete before
+  // the first replaces its target.
+  exrFile.commit();
+  pngFile.commit();
+  if (statsFile) statsFile->commit();
   if (!o.quiet)
     std::fprintf(stderr, "%s %d spp: %.3f s render, %.2f samples/pixel -> %s, %s\n", methodName(rs.method), rs.spp,
                  r.seconds, double(r.counters.directions) / shaded, o.out.c_str(), png.string().c_str());
@@ -327,6 +332,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "htrender: error: %s (see --help)\n", e.what());
     return e.get_exit_code() != 0 ? e.get_exit_code() : 1;
   }
+  removeOutputsOnSignals();
   try {
     if (*info) return runInfo();
     if (*methods) {
@@ -334,6 +340,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*average) {
+      checkOutputPaths({{"--out", averageOut}});
       ImageRGB sum;
       for (const std::string& path : averageInputs) {
         ImageRGB img = readExr(path);
@@ -351,12 +358,16 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (*exportCmd) {
+      checkOutputPaths({{"--out", exportOut}});
+      OutputFile out(exportOut);
       ImageRGB img = readExr(exportIn);
-      std::ofstream f(exportOut, std::ios::binary);
-      f << "PF\n" << img.width << " " << img.height << "\n-1.0\n";
+      std::string pfm = fmt::format("PF\n{} {}\n-1.0\n", img.width, img.height);
+      const size_t header = pfm.size(), row = sizeof(glm::vec3) * size_t(img.width);
+      pfm.resize(header + row * size_t(img.height));
       for (int y = img.height - 1; y >= 0; --y)  // PFM rows run bottom to top
-        f.write(reinterpret_cast<const char*>(&img.at(0, y)), std::streamsize(sizeof(glm::vec3)) * img.width);
-      if (!f) throw Error(fmt::format("{}: cannot write", exportOut));
+        std::memcpy(&pfm[header + row * size_t(img.height - 1 - y)], &img.at(0, y), row);
+      writeBytes(out, pfm.data(), pfm.size());
+      out.commit();
       return 0;
     }
     if (*compare) {
