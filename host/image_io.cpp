@@ -307,8 +307,9 @@ uint64_t scanHeaders(Imf::IStream& s, uint64_t size, int version, const std::str
   return pos;
 }
 
-// Reads the whole image from `stream` (positioned at 0) of `size` bytes.
-ImageRGB readExrStream(Imf::IStream& stream, uint64_t size, const std::string& name) {
+// Reads the whole image from `stream` (positioned at 0) of `size` bytes;
+// with headerOnly, only its checked size.
+ImageRGB readExrStream(Imf::IStream& stream, uint64_t size, const std::string& name, bool headerOnly = false) {
   // Checking the magic number ourselves gives a clear message for files that
   // are not EXR at all, instead of whatever OpenEXR makes of their bytes.
   char start[8] = {};
@@ -356,6 +357,7 @@ ImageRGB readExrStream(Imf::IStream& stream, uint64_t size, const std::string& n
 
     image.width = dw.max.x - dw.min.x + 1;
     image.height = dw.max.y - dw.min.y + 1;
+    if (headerOnly) return image;
     const size_t width = size_t(image.width);
     const size_t total = width * size_t(image.height);
     // Pixels are filled in as rows are decoded, so a file that claims a huge
@@ -426,7 +428,7 @@ ImageRGB readExrStream(Imf::IStream& stream, uint64_t size, const std::string& n
 
 namespace {
 
-ImageRGB readExrFile(const std::string& path) {
+ImageRGB readExrFile(const std::string& path, bool headerOnly = false) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error("cannot open " + path + ": " + std::strerror(errno));
   // A directory opens fine as a stream on Linux and would only fail later.
@@ -436,7 +438,7 @@ ImageRGB readExrFile(const std::string& path) {
   if (ec) throw Error("cannot open " + path + ": " + ec.message());
   try {
     Imf::StdIFStream stream(in, path.c_str());
-    return readExrStream(stream, size, path);
+    return readExrStream(stream, size, path, headerOnly);
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {
@@ -451,6 +453,17 @@ ImageRGB readExr(const std::string& path) {
     return readExrFile(path);
   } catch (const Error& e) {
     throw Error(oneLine(e.what()));  // the path may hold a newline
+  }
+}
+
+bool readExrSize(const std::string& path, int& width, int& height) {
+  try {
+    const ImageRGB header = readExrFile(path, true);
+    width = header.width;
+    height = header.height;
+    return true;
+  } catch (const std::exception&) {
+    return false;
   }
 }
 

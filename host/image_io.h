@@ -36,7 +36,9 @@ constexpr int kMaxImageDimension = 32768;
 // Reads scanline or tiled EXR, half or float, RGB or RGBA (Y only is read as
 // grey). Throws ht::Error with a one-line message on any problem.
 ImageRGB readExr(const std::string& path);
-// The same from `size` bytes in memory; `name` stands for the file in messages.
+// The size from the checked header alone; false if the file cannot be read.
+bool readExrSize(const std::string& path, int& width, int& height);
+// The same as readExr from `size` bytes in memory; `name` stands for the file in messages.
 ImageRGB readExrFromMemory(const void* data, size_t size, const std::string& name);
 class OutputFile;
 // Writes linear float RGB (uncompressed-size ZIP). Throws ht::Error. The

@@ -1,6 +1,7 @@
 // htrender command line.
 #include <unistd.h>
 
+#include <bit>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -16,6 +17,7 @@
 #include <tbb/info.h>
 
 #include "gpu_render.h"
+#include "memory.h"
 #include "output_file.h"
 #include "render.h"
 #include "scene.h"
@@ -44,6 +46,7 @@ struct RenderOptions {
   bool repairNonFinite = false;
   int wisOrder = 5;
   std::string htSequence = "sphere";
+  std::string maxMemory;
 };
 
 double secondsSince(std::chrono::steady_clock::time_point t) {
@@ -135,6 +138,9 @@ int runRender(const RenderOptions& o) {
     throw Error("--gpu-index picks a Vulkan device: it conflicts with --device cpu");
   if (fs::path(o.out).extension() != ".exr") throw Error(fmt::format("{}: --out must end in .exr", o.out));
   fs::path png = fs::path(o.out).replace_extension(".png");
+  const uint64_t memoryLimit = o.maxMemory.empty() ? defaultMemoryLimit() : parseByteSize(o.maxMemory);
+  const std::string limitSource =
+      o.maxMemory.empty() ? "--max-memory, by default 80% of the available memory" : "--max-memory";
   std::vector<std::pair<std::string, std::string>> outputs = {{"--out", o.out}, {"the PNG preview", png.string()}};
   if (!o.stats.empty()) outputs.emplace_back("--stats", o.stats);
   checkOutputPaths(outputs);
@@ -149,6 +155,25 @@ int runRender(const RenderOptions& o) {
   auto t0 = std::chrono::steady_clock::now();
   Scene scene = readSceneFile(resolveScene(o.scene));
   double tParse = secondsSince(t0);
+
+  // The memory the render will need, before anything large is allocated;
+  // the map's size comes from its header (an unreadable map is refused by
+  // loadEnvironment with its own message).
+  MemoryInputs mem;
+  mem.envOrder = std::countr_zero(unsigned(scene.environmentDesc.nside));
+  {
+    fs::path file = scene.environmentDesc.file;
+    if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
+    readExrSize(file.string(), mem.inputWidth, mem.inputHeight);
+  }
+  mem.method = *method;
+  mem.options.oracleOrder = o.oracleOrder;
+  mem.options.wisOrder = o.wisOrder;
+  mem.width = o.width > 0 ? o.width : scene.width;
+  mem.height = o.height > 0 ? o.height : scene.height;
+  mem.threads = tbb::info::default_concurrency();
+  mem.gpu = o.device == "gpu";
+  checkMemory(estimateRenderMemory(mem), memoryLimit, limitSource);
   t0 = std::chrono::steady_clock::now();
   scene.environmentDesc.repairNonFinite = o.repairNonFinite;
   loadEnvironment(scene);
@@ -164,6 +189,9 @@ int runRender(const RenderOptions& o) {
   std::string cpuWhy;
   std::unique_ptr<GpuRenderer> gpu = o.device == "cpu" ? nullptr : openGpu(o, *method, cpuWhy);
   double tDevice = secondsSince(t0);
+  mem.gpu = gpu != nullptr;
+  const MemoryEstimate memory = estimateRenderMemory(mem);
+  checkMemory(memory, memoryLimit, limitSource);
 
   if (!o.quiet && gpu)
     std::fprintf(stderr, "device: gpu %s (%s, Vulkan %s)\n", gpu->device().name.c_str(), gpu->device().type.c_str(),
@@ -242,6 +270,14 @@ int runRender(const RenderOptions& o) {
     stats["seconds"]["upload"] = tUpload;
     stats["seconds"]["gpu"] = tGpu >= 0.0 ? nlohmann::json(tGpu) : nlohmann::json(nullptr);
   }
+  nlohmann::json memoryParts = nlohmann::json::object();
+  for (const auto& [what, bytes] : memory.parts) memoryParts[what] = bytes;
+  stats["memory"] = {{"estimate_bytes", memory.peak()},
+                     {"estimate_load_bytes", memory.loadPeak},
+                     {"estimate_render_bytes", memory.renderPeak},
+                     {"limit_bytes", memoryLimit},
+                     {"peak_rss_bytes", peakRssBytes()},
+                     {"parts", memoryParts}};
   if (statsFile) {
     const std::string text = stats.dump(2) + "\n";
     writeBytes(*statsFile, text.data(), text.size());
@@ -297,6 +333,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   render->add_flag("--repair-nonfinite", o.repairNonFinite,
                   "set NaN/Inf texels of the environment to 0 with a warning instead of refusing the map");
+  render->add_option("--max-memory", o.maxMemory,
+                     "refuse renders estimated to need more memory (bytes, or with K, M, G, T; "
+                     "default: 80% of the available memory)");
   render->add_flag("--quiet,-q", o.quiet, "no progress or summary on stderr");
 
   CLI::App* methods = app.add_subcommand("methods", "list the sampling methods");

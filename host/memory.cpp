@@ -1,0 +1,163 @@
+#include "memory.h"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "image_io.h"
+#include "tree.h"
+#include "tsis.h"
+#include "wis.h"
+
+namespace ht {
+
+namespace {
+
+bool isHt(Method m) {
+  return m == Method::Ht || m == Method::HtVis || m == Method::HtBiased || m == Method::HtVisBiased;
+}
+
+// Code, libraries and TBB, as measured (peak RSS) rendering a tiny scene.
+constexpr uint64_t kBaseBytes = uint64_t(12) << 20;
+constexpr uint64_t kVulkanBytes = uint64_t(224) << 20;
+
+}  // namespace
+
+MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
+  MemoryEstimate e;
+  const uint64_t pixels = MaxAvgTree::levelSize(in.envOrder);  // 12 Nside^2
+  const uint64_t nodes = MaxAvgTree::levelOffset(in.envOrder + 1);
+  const uint64_t image = uint64_t(in.width) * uint64_t(in.height);
+  auto add = [&](const std::string& what, uint64_t bytes) {
+    if (bytes > 0) e.parts.emplace_back(what, bytes);
+    return bytes;
+  };
+  const uint64_t base = add("program", kBaseBytes);
+  const uint64_t input = add("input map", uint64_t(in.inputWidth) * uint64_t(in.inputHeight) * 12);
+  const uint64_t radiance = add("HEALPix radiance", pixels * 12);
+  const uint64_t luminance = add("luminance (while building the trees)", pixels * 4);
+  const uint64_t trees = add("max/avg trees", nodes * 8);
+
+  uint64_t tables = 0;
+  if (isHt(in.method) || in.method == Method::Oracle) tables += add("HT node geometry", nodes * 20);
+  if (in.method == Method::Oracle) {
+    const int k = std::clamp(in.options.oracleOrder, 0, in.envOrder);
+    tables += add("oracle tables (per thread)", uint64_t(std::max(in.threads, 1)) * MaxAvgTree::levelSize(k) * 40);
+  }
+  if (in.method == Method::Wis || in.method == Method::WisBiased) {
+    const int k = std::clamp(in.options.wisOrder, 0, std::min(in.envOrder, WisPoint::kMaxOrder));
+    tables += add("wis node centres", MaxAvgTree::levelOffset(k + 1) * 12);
+  }
+  uint64_t sat = 0;
+  if (in.method == Method::Tsis) {
+    const uint64_t n = (uint64_t(1) << std::min(in.envOrder, TsisTable::kMaxLevel)) + 1;
+    sat = tables += add("tsis summed-area table", 12 * n * n * 8);
+  }
+  // The image, and while writing its PNG the 8-bit copy and the encoded file.
+  const uint64_t out = add("image and its encodings", image * (12 + 6));
+
+  uint64_t gpu = 0;
+  if (in.gpu) {
+    // The driver with its shader compiler (LLVM in lavapipe), as measured.
+    gpu += kVulkanBytes;
+    gpu += radiance + trees + sat;
+    if (isHt(in.method)) gpu += nodes * 20;
+    gpu += image * 12;  // the readback of the tiles, gathered
+    add("GPU buffers", gpu);
+  }
+  e.loadPeak = base + input + radiance + luminance + trees;
+  e.renderPeak = base + radiance + trees + tables + out + gpu;
+  return e;
+}
+
+uint64_t parseByteSize(const std::string& text) {
+  auto bad = [&] {
+    return Error(oneLine(fmt::format("--max-memory: \"{}\" is not a size (bytes, or a number with K, M, G or T)",
+                                     text)));
+  };
+  size_t used = 0;
+  double value = 0.0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    throw bad();
+  }
+  if (!std::isfinite(value) || value <= 0.0 || !std::isdigit((unsigned char)text[0])) throw bad();
+  std::string unit = text.substr(used);
+  for (char& c : unit) c = char(std::toupper((unsigned char)c));
+  if (unit.size() > 1 && unit.back() == 'B') unit.pop_back();
+  if (unit.size() > 1 && unit.back() == 'I') unit.pop_back();
+  int shift = 0;
+  if (unit == "" || unit == "B") shift = 0;
+  else if (unit == "K") shift = 10;
+  else if (unit == "M") shift = 20;
+  else if (unit == "G") shift = 30;
+  else if (unit == "T") shift = 40;
+  else throw bad();
+  const double bytes = std::ldexp(value, shift);
+  if (bytes >= 0x1p63) throw bad();
+  return uint64_t(bytes);
+}
+
+uint64_t defaultMemoryLimit() {
+  uint64_t available = 0;
+  std::ifstream meminfo("/proc/meminfo");
+  for (std::string key; meminfo >> key;) {
+    uint64_t kb = 0;
+    meminfo >> kb;
+    meminfo.ignore(64, '\n');
+    if (key == "MemAvailable:") available = kb << 10;
+  }
+  if (available == 0) {
+    const long pages = sysconf(_SC_AVPHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    if (pages > 0 && size > 0) available = uint64_t(pages) * uint64_t(size);
+  }
+  // A container's own limit (cgroup v2) may be tighter than the machine's.
+  std::ifstream maxFile("/sys/fs/cgroup/memory.max"), currentFile("/sys/fs/cgroup/memory.current");
+  std::string max;
+  uint64_t current = 0;
+  if (maxFile >> max && max != "max" && currentFile >> current) {
+    const uint64_t limit = std::stoull(max);
+    const uint64_t left = limit > current ? limit - current : 0;
+    available = available == 0 ? left : std::min(available, left);
+  }
+  if (available == 0) return UINT64_MAX;  // nothing to go by: no limit
+  return available / 5 * 4;
+}
+
+uint64_t peakRssBytes() {
+  struct rusage ru {};
+  getrusage(RUSAGE_SELF, &ru);
+  return uint64_t(ru.ru_maxrss) << 10;  // KiB on Linux
+}
+
+std::string formatBytes(uint64_t bytes) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  double v = double(bytes);
+  int u = 0;
+  while (v >= 1024.0 && u < 4) {
+    v /= 1024.0;
+    ++u;
+  }
+  return u == 0 ? fmt::format("{} B", bytes) : fmt::format("{:.1f} {}", v, units[u]);
+}
+
+void checkMemory(const MemoryEstimate& e, uint64_t limit, const std::string& limitSource) {
+  if (e.peak() <= limit) return;
+  std::vector<std::pair<std::string, uint64_t>> parts = e.parts;
+  std::sort(parts.begin(), parts.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+  std::string largest;
+  for (size_t i = 0; i < std::min<size_t>(3, parts.size()); ++i)
+    largest += fmt::format("{}{} {}", i ? ", " : "", parts[i].first, formatBytes(parts[i].second));
+  throw Error(fmt::format("not enough memory: this render needs about {} ({}), more than the limit of {} ({})",
+                          formatBytes(e.peak()), largest, formatBytes(limit), limitSource));
+}
+
+}  // namespace ht
