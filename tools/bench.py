@@ -27,6 +27,7 @@ is estimated from the difference of its two halves and reported.
 """
 import argparse
 import hashlib
+import io
 import json
 import os
 import platform
@@ -41,6 +42,37 @@ FIREFLY_SIGMAS = 10.0
 
 class RenderRefused(Exception):
     pass
+
+
+def write_atomic(path, data):
+    """Writes text or bytes to a temporary next to `path` and renames it over
+    `path`: an interrupted run leaves the previous file, never half a file."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode() if isinstance(data, str) else data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def save_figure(fig, path, **kwargs):
+    """fig.savefig through a temporary, like write_atomic."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, **kwargs)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def run(cmd):
@@ -133,7 +165,7 @@ def reference(args, scene, outdir):
     info = {"method": args.ref_method, "spp": 2 * half, "version": version, "key": key,
             "width": sa["width"], "height": sa["height"],
             "residual_rmse": diff["rmse"] / 2.0, "residual_relmse": diff["relmse"] / 4.0}
-    meta.write_text(json.dumps(info, indent=2))
+    write_atomic(meta, json.dumps(info, indent=2))
     for p in (a, b, a.with_suffix(".json"), b.with_suffix(".json"), a.with_suffix(".png"), b.with_suffix(".png")):
         p.unlink(missing_ok=True)
     return ref, info
@@ -282,14 +314,14 @@ def main():
               "runs": args.runs, "gpu_runs": args.gpu_runs or args.runs, "oracle_spp": oracle_spps, "warmup": args.warmup, "spp": spps, "width": args.width, "height": args.height,
               "extra": args.extra, "firefly_sigmas": FIREFLY_SIGMAS, "references": refs, "results": rows,
               "skipped": skipped}
-    (outdir / "results.json").write_text(json.dumps(result, indent=2))
+    write_atomic(outdir / "results.json", json.dumps(result, indent=2))
     cols = ["scene", "device", "method", "spp", "seconds", "gpu_seconds", "setup_seconds", "samples_per_pixel",
             "rmse", "relmse", "mean_abs_rel_error", "luminance_relmse", "fireflies", "device_name"]
-    with open(outdir / "results.csv", "w") as f:
-        f.write(",".join(cols) + "\n")
-        for r in rows:
-            f.write(",".join("" if r.get(c) is None else str(r[c]).replace(",", " ") for c in cols) + "\n")
-    with open(outdir / "results.md", "w") as f:
+    csv = [",".join(cols)]
+    for r in rows:
+        csv.append(",".join("" if r.get(c) is None else str(r[c]).replace(",", " ") for c in cols))
+    write_atomic(outdir / "results.csv", "\n".join(csv) + "\n")
+    with io.StringIO() as f:
         f.write(f"Machine: {result['machine']['cpu']}, {result['machine']['cores']} cores; devices "
                 f"{', '.join(devices)}; fastest of {args.runs} runs after a warm-up.\n\n")
         for scene, info in refs.items():
@@ -307,6 +339,7 @@ def main():
             for s in skipped:
                 f.write(f"- {s['scene']} {s['device']} {s['method']}"
                         f"{' at ' + str(s['spp']) + ' spp' if 'spp' in s else ''}: {s['reason']}\n")
+        write_atomic(outdir / "results.md", f.getvalue())
     print(f"bench: wrote {outdir}/results.{{csv,json,md}}", file=sys.stderr)
 
 

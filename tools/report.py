@@ -29,7 +29,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench import lum, read_exr  # noqa: E402
+from bench import lum, read_exr, save_figure, write_atomic  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 TALK = {  # slide 52: Core 2 Duo 2.4 GHz, one core, seconds
@@ -120,7 +120,7 @@ def charts(scene, rows, outdir):
         a.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     path = outdir / f"{scene}-charts.png"
-    fig.savefig(path, dpi=DPI)
+    save_figure(fig, path, dpi=DPI)
     plt.close(fig)
     return path.name
 
@@ -150,7 +150,7 @@ def image_grid(scene, chosen, ref_img, images, outdir, title, crop=True):
     fig.suptitle(f"{scene}: {title} (below each: relative error, black 0 .. yellow 1)", fontsize=9)
     fig.tight_layout()
     path = outdir / f"{scene}-{title.replace(' ', '-')}.png"
-    fig.savefig(path, dpi=DPI)
+    save_figure(fig, path, dpi=DPI)
     plt.close(fig)
     return path.name
 
@@ -430,7 +430,7 @@ def scaling_section(data, outdir):
             a.grid(True, which="both", alpha=0.3)
             a.legend(fontsize=7)
         fig.tight_layout()
-        fig.savefig(outdir / "scaling.png", dpi=DPI)
+        save_figure(fig, outdir / "scaling.png", dpi=DPI)
         plt.close(fig)
         md += ["![scaling](scaling.png)", ""]
         for s in sweeps:
@@ -513,7 +513,7 @@ def main():
         md += stress_section(json.loads((Path(args.stress) / "results.json").read_text()), outdir)
     if args.scaling:
         md += scaling_section(json.loads((Path(args.scaling) / "scaling.json").read_text()), outdir)
-    (outdir / "README.md").write_text("\n".join(md) + "\n")
+    write_atomic(outdir / "README.md", "\n".join(md) + "\n")
     for f in tmp.iterdir():
         f.unlink()
     tmp.rmdir()

@@ -28,7 +28,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench import machine  # noqa: E402
+from bench import machine, write_atomic  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -135,13 +135,11 @@ def main():
 
     result = {"machine": machine(), "device": args.device, "runs": args.runs, "scene": Path(args.scene).name,
               "width": args.width, "height": args.height, "sweep_spp": args.sweep_spp, "results": rows}
-    (outdir / "scaling.json").write_text(json.dumps(result, indent=2))
+    write_atomic(outdir / "scaling.json", json.dumps(result, indent=2))
     cols = ["sweep", "method", "x", "map", "spp", "width", "height", "nside", "seconds", "environment",
             "environment_load", "environment_resample", "environment_trees", "prepare", "samples_per_pixel"]
-    with open(outdir / "scaling.csv", "w") as f:
-        f.write(",".join(cols) + "\n")
-        for r in rows:
-            f.write(",".join(str(r.get(c, "")) for c in cols) + "\n")
+    csv = [",".join(cols)] + [",".join(str(r.get(c, "")) for c in cols) for r in rows]
+    write_atomic(outdir / "scaling.csv", "\n".join(csv) + "\n")
     print(f"scaling: wrote {outdir}/scaling.{{csv,json}}", file=sys.stderr)
 
 
