@@ -306,6 +306,116 @@ expect_error "cannot write $tmp/full-big.exr: No space left on device" render --
   --width 512 --height 256 -q --out "$tmp/full-big.exr"
 [ -c /dev/full ] && [ -L "$tmp/full.exr" ] && ok || fail "/dev/full or the link to it was replaced"
 
+# Every output is written to a temporary next to it and renamed into place
+# once all of them are complete; anything unwritable is refused before
+# rendering (stderr then holds only the error: no progress line).
+no_temporaries() { ! ls -A "$1" | grep -q '\.tmp\.' || fail "temporary files left in $1: $(ls -A "$1")"; }
+"$bin" render "${small[@]}" --out "$tmp/keep.exr" || fail "render keep.exr"
+keep=$(md5sum <"$tmp/keep.exr")
+unchanged() { [ "$(md5sum <"$tmp/keep.exr")" = "$keep" ] && ok || fail "keep.exr was replaced: $*"; }
+quiet_small=(--scene "$furnace" --spp 1 --width 8 --height 4 --device cpu)
+expect_error "cannot write /dev/full: No space left on device" render "${small[@]}" --out "$tmp/df.exr" --stats /dev/full
+[ ! -e "$tmp/df.exr" ] && [ ! -e "$tmp/df.png" ] && ok || fail "--stats /dev/full: the images were still written"
+expect_error "cannot write /dev/full: No space left on device" export "$tmp/keep.exr" --out /dev/full
+expect_error "cannot write $tmp/full.exr: No space left on device" export "$tmp/keep.exr" --out "$tmp/full.exr"
+[ -L "$tmp/full.exr" ] && ok || fail "export replaced the link to /dev/full"
+"$bin" export "$tmp/keep.exr" --out "$tmp/keep.pfm" && [ "$(head -c 11 "$tmp/keep.pfm")" = "$(printf 'PF\n8 4\n-1.0')" ] &&
+  [ "$(stat -c %s "$tmp/keep.pfm")" -eq $((12 + 8 * 4 * 12)) ] && ok || fail "export to a file"
+expect_error "--out and --stats name the same file $tmp/keep.exr" render "${quiet_small[@]}" --out "$tmp/keep.exr" \
+  --stats "$tmp/keep.exr"
+unchanged "--stats = --out"
+mkdir -p "$tmp/sub"
+expect_error "name the same file" render "${quiet_small[@]}" --out "$tmp/keep.exr" --stats "$tmp/sub/../keep.png"
+unchanged "--stats = the PNG preview"
+ln -sf "$tmp/keep.exr" "$tmp/link.json"
+expect_error "name the same file" render "${quiet_small[@]}" --out "$tmp/keep.exr" --stats "$tmp/link.json"
+unchanged "--stats links to --out"
+mv "$tmp/keep.png" "$tmp/keep-preview.png" && mkdir "$tmp/keep.png"
+expect_error "cannot write $tmp/keep.png: Is a directory" render "${quiet_small[@]}" --out "$tmp/keep.exr"
+unchanged "the PNG preview is a directory"
+rmdir "$tmp/keep.png"
+mkdir -p "$tmp/stats-dir.json"
+expect_error "cannot write $tmp/stats-dir.json: Is a directory" render "${quiet_small[@]}" --out "$tmp/keep.exr" \
+  --stats "$tmp/stats-dir.json"
+unchanged "the stats path is a directory"
+expect_error "cannot write /proc/ht-$$.json: No such file or directory" render "${quiet_small[@]}" \
+  --out "$tmp/keep.exr" --stats "/proc/ht-$$.json"
+unchanged "the stats path cannot be created"
+expect_error "$tmp/missing: output directory does not exist" export "$tmp/keep.exr" --out "$tmp/missing/x.pfm"
+no_temporaries "$tmp"
+
+# A signal between writing the temporaries and renaming them (the test hook
+# holds there), and one while a large EXR is being written: the old file
+# stays, nothing partial is left, the process dies of that signal.
+/usr/bin/python3 - "$bin" "$furnace" "$tmp/sig" <<'PY' && ok || fail "signals"
+import hashlib, os, signal, subprocess, sys, time
+binary, scene, d = sys.argv[1:]
+os.makedirs(d)
+target = os.path.join(d, "img.exr")
+base = [binary, "render", "--scene", scene, "--device", "cpu", "--spp", "1", "-q", "--out", target]
+subprocess.run(base + ["--width", "8", "--height", "4"], check=True)
+digest = lambda p: hashlib.md5(open(p, "rb").read()).hexdigest()
+old = digest(target)
+def temporaries():
+    return [f for f in os.listdir(d) if ".tmp." in f]
+for sig in (signal.SIGTERM, signal.SIGINT):
+    env = dict(os.environ, HTRENDER_TEST_HOLD_BEFORE_RENAME="60")
+    p = subprocess.Popen(base + ["--width", "64", "--height", "32", "--stats", os.path.join(d, "s.json")],
+                         env=env, stderr=subprocess.PIPE, text=True)
+    line = p.stderr.readline()
+    assert line.startswith("holding "), line
+    held = line.split(" ", 1)[1].strip()
+    assert os.path.getsize(held) > 0, held
+    p.send_signal(sig)
+    assert p.wait(timeout=30) == -sig, (sig, p.returncode)
+    assert digest(target) == old, "the old image was replaced"
+    assert not temporaries(), temporaries()
+    assert not os.path.exists(os.path.join(d, "s.json"))
+# No hook: a real signal once the large EXR's temporary has started to
+# fill. Should the render win the race and finish first, the new image must
+# be whole; either way nothing partial may be left.
+p = subprocess.Popen(base + ["--method", "uniform", "--width", "4096", "--height", "2048"], stderr=subprocess.PIPE)
+deadline = time.time() + 300
+while p.poll() is None and time.time() < deadline:
+    if any(f.startswith(".img.exr.") and os.path.getsize(os.path.join(d, f)) > 0 for f in temporaries()):
+        p.send_signal(signal.SIGTERM)
+        break
+    time.sleep(0.001)
+rc = p.wait(timeout=300)
+assert not temporaries(), temporaries()
+if rc == -signal.SIGTERM:
+    assert digest(target) == old, "the old image was replaced by a partial one"
+else:
+    assert rc == 0, rc
+    r = subprocess.run([binary, "compare", "--ref", target, "--test", target], capture_output=True, text=True)
+    assert r.returncode == 0 and '"pixels":8388608' in r.stdout, r
+    print("note: the large render finished before the signal", file=sys.stderr)
+PY
+
+# Memory: the estimate is checked against --max-memory (default: 80% of the
+# available memory) before anything large is allocated.
+edit_scene '"nside": 4' '"nside": 8192' "$tmp/s-8192.json"
+expect_render_error "not enough memory: this render needs about" "$tmp/s-8192.json" --max-memory 16G
+grep -qE "needs about 2[0-9]\.[0-9] GiB .*more than the limit of 16\.0 GiB \(--max-memory\)" "$tmp/err" && ok ||
+  fail "nside 8192: need and limit not named: $(cat "$tmp/err")"
+expect_render_error "more than the limit of 512.0 MiB" "$tmp/s-8192.json" --method ht --max-memory 512M
+expect_render_error '--max-memory: "lots" is not a size' "$tmp/s-8192.json" --max-memory lots
+expect_render_error '--max-memory: "-1G" is not a size' "$tmp/s-8192.json" --max-memory=-1G
+# A moderate case: the peak resident set measured by the process lies
+# within a factor 1.5 of the estimate either way (recorded in the stats).
+edit_scene '"nside": 4' '"nside": 512' "$tmp/s-512.json"
+for m in mis ht; do
+  "$bin" render --scene "$tmp/s-512.json" --method $m --device cpu --spp 1 -q --out "$tmp/m.exr" \
+    --stats "$tmp/m.json" --max-memory 2G && /usr/bin/python3 - "$tmp/m.json" <<'PY' && ok || fail "memory estimate, $m"
+import json, sys
+m = json.load(open(sys.argv[1]))["memory"]
+ratio = m["peak_rss_bytes"] / m["estimate_bytes"]
+assert m["limit_bytes"] == 2 << 30, m
+assert 1 / 1.5 <= ratio <= 1.5, (ratio, m)
+PY
+done
+expect_render_error "HT node geometry 80.0 MiB" "$tmp/s-512.json" --method ht --max-memory 100M
+
 # Command-line values.
 expect_error "--spp: Value -3 not in range" render --scene "$furnace" --spp -3 --out "$tmp/x.exr"
 expect_error "--width: Value -5 not in range" render --scene "$furnace" --width -5 --out "$tmp/x.exr"
