@@ -147,6 +147,18 @@ hreal hrealFromBits(uint64_t b) { return uintBitsToFloat(uint(b)); }
 uint64_t hrealToBits(hreal v) { return uint64_t(floatBitsToUint(v)); }
 #endif
 
+void storeWalk(inout GpuPixelState st, HtWalk w) {
+  st.htSeed = w.seed;
+  st.htFace = w.face;
+  st.htLevel = w.level;
+  st.htNode = w.node;
+  st.htR = w.r;
+  st.htLeafH = w.leafH;
+}
+HtWalk loadWalk(GpuPixelState st) {
+  return HtWalk(st.htSeed, st.htFace, st.htLevel, st.htNode, st.htR, st.htLeafH);
+}
+
 // The first dispatch of a tile: the draws estimateDirect makes before its
 // samples. Leaves st.done = 1 when there is nothing to sample.
 void beginPixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 normal, vec3 wo, uint method) {
@@ -155,12 +167,7 @@ void beginPixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 normal, 
     HtWalk w;
     bool work = htBegin(sh, position, normal, wo, pc.spp, rng, w);
     st.done = work ? 0u : 1u;
-    st.htSeed = w.seed;
-    st.htFace = w.face;
-    st.htLevel = w.level;
-    st.htNode = w.node;
-    st.htR = w.r;
-    st.htLeafH = w.leafH;
+    storeWalk(st, w);
     st.htS = hrealToBits(ht.s);
     st.htU = hrealToBits(ht.u);
   } else if (method == HT_METHOD_RIS) {
@@ -191,13 +198,7 @@ bool continuePixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 norma
       ht.u = hrealFromBits(st.htU);
     }
     for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) gHtPathMin[l] = st.htPathMin[l];
-    HtWalk w;
-    w.seed = st.htSeed;
-    w.face = st.htFace;
-    w.level = st.htLevel;
-    w.node = st.htNode;
-    w.r = st.htR;
-    w.leafH = st.htLeafH;
+    HtWalk w = loadWalk(st);
     gHtSum = sum;
     gHtSamples = directions;
     uint taken;
@@ -205,11 +206,7 @@ bool continuePixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 norma
     complete = finished || taken == pc.batchLimit;
     sum = gHtSum;
     directions = gHtSamples;
-    st.htFace = w.face;
-    st.htLevel = w.level;
-    st.htNode = w.node;
-    st.htR = w.r;
-    st.htLeafH = w.leafH;
+    storeWalk(st, w);
     for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) st.htPathMin[l] = gHtPathMin[l];
     st.done = finished ? 1u : 0u;
   } else {
