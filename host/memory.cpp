@@ -43,6 +43,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
   const uint64_t input = add("input map", uint64_t(in.inputWidth) * uint64_t(in.inputHeight) * 12);
   const uint64_t radiance = add("HEALPix radiance", pixels * 12);
   const uint64_t luminance = add("luminance (while building the trees)", pixels * 4);
+  const uint64_t resample = add("energy per pixel (while resampling)", pixels * 24);
   const uint64_t trees = add("max/avg trees", nodes * 8);
 
   uint64_t tables = 0;
@@ -72,7 +73,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
     gpu += image * 12;  // the readback of the tiles, gathered
     add("GPU buffers", gpu);
   }
-  e.loadPeak = base + input + radiance + luminance + trees;
+  e.loadPeak = base + input + radiance + luminance + resample + trees;
   e.renderPeak = base + radiance + trees + tables + out + gpu;
   return e;
 }

