@@ -264,7 +264,7 @@ void main() {
   result.directions = 0u;
   result.shadowRays = 0u;
   result.htNodes = 0u;
-  result.status = HT_PIXEL_DONE;
+  bool done = true, cut = false;
 
   precise float px = float(x) + 0.5;
   precise float py = float(y) + 0.5;
@@ -274,13 +274,12 @@ void main() {
     result.radiance = envEval(ray.dir);
   } else {
     uint method = kSpecializedMethod == HT_METHOD_ANY ? pc.method : kSpecializedMethod;
-    GpuMaterial material = materials[hit.material];
     vec3 wo = -ray.dir;
     Shading sh;
     sh.frame = makeFrame(hit.normal);
     sh.woLocal = toLocal(sh.frame, wo);
     sh.origin = offsetRayOrigin(hit.position, hit.normal);
-    sh.material = material;
+    sh.material = materials[hit.material];
     gHtMaterial = hit.material;
     GpuPixelState st;
     bool prepared = pc.batch == 0u;
@@ -295,25 +294,23 @@ void main() {
       sumToBits(accvec3(0.0), st.sum);
       for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) st.htPathMin[l] = 0.0;
       beginPixel(st, sh, hit.position, hit.normal, wo, method);
-      gShadowRays = 0u;
-      gHtNodes = 0u;
     } else {
       st = pc.pixelState.s[slot];
-      gShadowRays = st.shadowRays;
-      gHtNodes = st.htNodes;
     }
-    if (st.done == 0u && !continuePixel(st, sh, hit.position, hit.normal, wo, method, prepared))
-      result.status |= HT_PIXEL_LOOPS_CUT;
+    gShadowRays = st.shadowRays;
+    gHtNodes = st.htNodes;
+    if (st.done == 0u) cut = !continuePixel(st, sh, hit.position, hit.normal, wo, method, prepared);
     st.shadowRays = gShadowRays;
     st.htNodes = gHtNodes;
     pc.pixelState.s[slot] = st;
-    result.radiance = st.done != 0u ? finishPixel(st, method) : vec3(0.0);
+    done = st.done != 0u;
+    if (done) result.radiance = finishPixel(st, method);
     result.shaded = 1u;
     result.directions = st.directions;
     result.shadowRays = st.shadowRays;
     result.htNodes = st.htNodes;
-    result.status = (result.status & HT_PIXEL_LOOPS_CUT) | (st.done != 0u ? HT_PIXEL_DONE : 0u);
   }
-  if (loopsWereCut()) result.status |= HT_PIXEL_LOOPS_CUT;
+  cut = loopsWereCut() || cut;
+  result.status = (done ? HT_PIXEL_DONE : 0u) | (cut ? HT_PIXEL_LOOPS_CUT : 0u);
   pixels[slot] = result;
 }
