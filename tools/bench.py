@@ -44,35 +44,34 @@ class RenderRefused(Exception):
     pass
 
 
-def write_atomic(path, data):
-    """Writes text or bytes to a temporary next to `path` and renames it over
+def replace_atomically(path, write):
+    """Calls write(tmp) for a temporary next to `path`, then renames it over
     `path`: an interrupted run leaves the previous file, never half a file."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data.encode() if isinstance(data, str) else data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def save_figure(fig, path, **kwargs):
-    """fig.savefig through a temporary, like write_atomic."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
     os.close(fd)
     try:
-        fig.savefig(tmp, **kwargs)
+        write(tmp)
         os.chmod(tmp, 0o644)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def write_atomic(path, data):
+    """Text or bytes to `path`, through a temporary."""
+    def write(tmp):
+        with open(tmp, "wb") as f:
+            f.write(data.encode() if isinstance(data, str) else data)
+            f.flush()
+            os.fsync(f.fileno())
+    replace_atomically(path, write)
+
+
+def save_figure(fig, path, **kwargs):
+    """fig.savefig to `path`, through a temporary."""
+    replace_atomically(path, lambda tmp: fig.savefig(tmp, **kwargs))
 
 
 def run(cmd):
