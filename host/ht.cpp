@@ -95,20 +95,23 @@ const HtGeometry& htGeometry(int order) {
   return *g;
 }
 
-Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry) {
+Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry, int levels) {
   Cap c{axis, angle, std::cos(angle), {}, {}};
-  for (size_t l = 0; l < c.cosInside.size(); ++l) {
+  c.cosInside.fill(2.0f);    // never inside
+  c.cosOutside.fill(-2.0f);  // never outside
+  for (int l = 0; l < std::min(levels, int(c.cosInside.size())); ++l) {
     float rad = geometry.levelRadius[l];
-    c.cosInside[l] = angle > rad ? std::cos(angle - rad) : 2.0f;  // 2: never inside
+    c.cosInside[l] = angle > rad ? std::cos(angle - rad) : 2.0f;
     c.cosOutside[l] = std::cos(std::min(kPi, angle + rad));
   }
   return c;
 }
 
-std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry) {
+std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry, int levels) {
   const Environment& env = scene.environment;
   std::vector<Cap> caps;
-  auto addCap = [&](const glm::vec3& axis, float angle) { caps.push_back(makeCap(axis, angle, geometry)); };
+  caps.reserve(scene.spheres.size() + scene.planes.size());
+  auto addCap = [&](const glm::vec3& axis, float angle) { caps.push_back(makeCap(axis, angle, geometry, levels)); };
   // Caps shrink by a milliradian so that "inside" always means blocked.
   // They are seen from where the shadow rays start: a hit point rounded
   // to just below its own plane would otherwise see the sky as blocked.
@@ -149,7 +152,7 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
     tableY = glm::cross(n, tableX);
   }
   if (options.visibility) caps = visibilityCaps(scene, sp, geometry);
-  estimateBudget();
+  if (options.budgetRefinements >= 0) estimateBudget();
 }
 
 float HtPoint::brdfValue(const glm::vec3& dirHp) const {

@@ -23,7 +23,7 @@
 #include <glm/vec3.hpp>
 
 #include "brdf_table.h"
-#include "integrator.h"
+#include "shading.h"
 #include "rng.h"
 #include "sampling.h"
 #include "scene.h"
@@ -34,7 +34,7 @@ struct HtOptions {
   bool visibility = false;     // multiply by the inner-sphere visibility factor
   bool brdfTable = false;      // BRDF bounds from tabulated trees instead of cones
   bool biased = false;         // stop early where the BRDF is smooth, use its average
-  int budgetRefinements = 24;  // node splits used to estimate C = integral of h
+  int budgetRefinements = 24;  // node splits used to estimate C = integral of h (< 0: no estimate)
   float brdfFloor = 1e-3f;     // leaf BRDF factor >= brdfFloor * its bound
   float visibilityFloor = 0.1f;  // leaf visibility factor of a partly covered leaf >= this
   int maxLevel = 24;           // deepest (virtual) level; r stays below 12 * 2^48
@@ -68,11 +68,19 @@ struct Cap {
   std::array<float, 32> cosInside, cosOutside;
 };
 
-// A cap with its per-level inside / outside tests for nodes of `geometry`.
-Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry);
+// A cap with its inside / outside tests for nodes of `geometry` at levels
+// below `levels` (default: the levels the geometry has); deeper levels get
+// tests that never decide (every node counts as partly covered).
+Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry, int levels);
+inline Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry) {
+  return makeCap(axis, angle, geometry, geometry.order + 1);
+}
 // The caps of every sphere and plane as seen from the shading point's
 // shadow-ray origin.
-std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry);
+std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry, int levels);
+inline std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry) {
+  return visibilityCaps(scene, sp, geometry, geometry.order + 1);
+}
 
 struct HtSample {
   glm::vec3 dir;       // world space

@@ -5,6 +5,7 @@
 
 #include "env_sampler.h"
 #include "ht.h"
+#include "ht_frontier.h"
 #include "oracle.h"
 #include "ris.h"
 #include "tsis.h"
@@ -29,25 +30,8 @@ constexpr std::array kMethods = {
     MethodInfo{Method::WisBiased, "wis-biased", "wis returning the approximated product x visibility", true},
     MethodInfo{Method::Tsis, "tsis", "two-stage importance sampling: BRDF-driven regions, env SAT inside"},
     MethodInfo{Method::Ris, "ris", "resampled importance sampling of env x BRDF from env + BRDF candidates"},
-};
-
-struct Shading {
-  const Scene& scene;
-  const ShadingPoint& sp;
-  Frame frame;
-  glm::vec3 woLocal;
-  glm::vec3 origin;
-  EstimateCounters& counters;
-
-  // f cos V for a direction whose radiance is already known.
-  glm::vec3 reflected(const glm::vec3& wi, const glm::vec3& radiance) {
-    if (radiance == glm::vec3(0.0f)) return glm::vec3(0.0f);
-    glm::vec3 fcos = evalBsdf(*sp.material, woLocal, frame.toLocal(wi));
-    if (fcos == glm::vec3(0.0f)) return fcos;
-    ++counters.shadowRays;
-    return occluded(scene, origin, wi) ? glm::vec3(0.0f) : fcos * radiance;
-  }
-  glm::vec3 reflected(const glm::vec3& wi) { return reflected(wi, scene.environment.eval(wi)); }
+    MethodInfo{Method::HtFrontier, "ht-frontier",
+               "exactly n stratified samples of env x BRDF x visibility over an adaptive HT frontier, BRDF by MIS"},
 };
 
 float powerHeuristic(float a, float b) {
@@ -81,13 +65,12 @@ void prepareMethod(const Scene& scene, Method method, const MethodOptions& optio
   if (method == Method::Wis || method == Method::WisBiased)
     healpixNodeCenters(std::clamp(options.wisOrder, 0, std::min(scene.environment.order, WisPoint::kMaxOrder)));
   if (method == Method::Tsis) tsisTable(scene.environment);
+  if (method == Method::HtFrontier) htGeometry(scene.environment.order);
 }
 
 glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi) {
   EstimateCounters unused;
-  Shading sh{scene, sp, Frame(sp.normal), {}, offsetRayOrigin(sp.position, sp.normal), unused};
-  sh.woLocal = sh.frame.toLocal(sp.wo);
-  return sh.reflected(wi, glm::vec3(1.0f));
+  return Shading(scene, sp, unused).reflected(wi, glm::vec3(1.0f));
 }
 
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
@@ -106,9 +89,14 @@ glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method meth
   if (method == Method::Wis || method == Method::WisBiased)
     return estimateWis(scene, sp, spp, methodOptions.wisOrder, method == Method::WisBiased, rng, counters);
   if (method == Method::Tsis) return estimateTsis(scene, sp, spp, rng, counters);
+  if (method == Method::HtFrontier) {
+    FrontierOptions options;
+    options.refinements = methodOptions.frontierRefinements;
+    options.tolerance = methodOptions.frontierTolerance;
+    return estimateHtFrontier(scene, sp, options, spp, rng, counters);
+  }
   if (method == Method::Ris) return estimateRis(scene, sp, spp, methodOptions.risCandidates, rng, counters);
-  Shading sh{scene, sp, Frame(sp.normal), {}, offsetRayOrigin(sp.position, sp.normal), counters};
-  sh.woLocal = sh.frame.toLocal(sp.wo);
+  const Shading sh(scene, sp, counters);
   const Material& mat = *sp.material;
   const Environment& env = scene.environment;
   glm::dvec3 sum(0.0);

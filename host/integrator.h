@@ -13,10 +13,11 @@
 
 #include "rng.h"
 #include "scene.h"
+#include "shading.h"
 
 namespace ht {
 
-enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased, Oracle, Wis, WisBiased, Tsis, Ris };
+enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased, Oracle, Wis, WisBiased, Tsis, Ris, HtFrontier };
 
 struct MethodInfo {
   Method method;
@@ -36,19 +37,8 @@ struct MethodOptions {
   bool htSphereSequence = true;                  // ht*: one sequence over the sphere, or one per face
   int risCandidates = 32;                        // ris: candidates M per resampled sample
   int wisOrder = 5;                              // wis*: HEALPix order of the sampled product (Nside 2^order)
-};
-
-struct ShadingPoint {
-  glm::vec3 position;
-  glm::vec3 normal;  // unit, on the side of wo
-  glm::vec3 wo;      // unit, towards the viewer
-  const Material* material;
-};
-
-struct EstimateCounters {
-  uint64_t directions = 0;  // directions drawn
-  uint64_t shadowRays = 0;
-  uint64_t htNodes = 0;     // HT tree nodes visited
+  int frontierRefinements = -1;                  // ht-frontier: most node splits per shading point (< 0: 16 + spp, at most 256)
+  double frontierTolerance = 0.0;                // ht-frontier: stop splitting below this share of the mass
 };
 
 // Builds the per-process tables a method uses (HEALPix geometry, BRDF

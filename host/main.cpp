@@ -45,6 +45,8 @@ struct RenderOptions {
   int risCandidates = 32;
   bool repairNonFinite = false;
   int wisOrder = 5;
+  int frontierRefinements = -1;
+  double frontierTolerance = 0.0;
   std::string htSequence = "sphere";
   std::string maxMemory;
 };
@@ -208,6 +210,8 @@ int runRender(const RenderOptions& o) {
   rs.options.oracleOrder = o.oracleOrder;
   rs.options.risCandidates = o.risCandidates;
   rs.options.wisOrder = o.wisOrder;
+  rs.options.frontierRefinements = o.frontierRefinements;
+  rs.options.frontierTolerance = o.frontierTolerance;
   rs.options.htSphereSequence = o.htSequence == "sphere";
   rs.options.brdfBounds =
       o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
@@ -330,6 +334,14 @@ int main(int argc, char** argv) {
   render->add_option("--wis-order", o.wisOrder,
                      "wis*: HEALPix order of the sampled product (Nside 2^order, at most the environment's)")
       ->check(CLI::Range(0, WisPoint::kMaxOrder))
+      ->capture_default_str();
+  render->add_option("--frontier-refinements", o.frontierRefinements,
+                     "ht-frontier: most node splits per shading point (frontier of 12 + 3 x this nodes; -1: 16 + spp, at most 256)")
+      ->check(CLI::Range(-1, 4096))
+      ->capture_default_str();
+  render->add_option("--frontier-tolerance", o.frontierTolerance,
+                     "ht-frontier: stop splitting once no node's priority reaches this share of the mass")
+      ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   render->add_flag("--repair-nonfinite", o.repairNonFinite,
                   "set NaN/Inf texels of the environment to 0 with a warning instead of refusing the map");

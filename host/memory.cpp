@@ -21,7 +21,8 @@ namespace ht {
 namespace {
 
 bool isHt(Method m) {
-  return m == Method::Ht || m == Method::HtVis || m == Method::HtBiased || m == Method::HtVisBiased;
+  return m == Method::Ht || m == Method::HtVis || m == Method::HtBiased || m == Method::HtVisBiased ||
+         m == Method::HtFrontier;
 }
 
 // Code, libraries and TBB, as measured (peak RSS) rendering a tiny scene.

@@ -100,9 +100,11 @@ struct Point {
 };
 
 std::vector<Cap> darkCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry) {
-  std::vector<Cap> caps = visibilityCaps(scene, sp, geometry);
+  // The oracle's product tree may go below the environment's order.
+  constexpr int kLevels = 32;
+  std::vector<Cap> caps = visibilityCaps(scene, sp, geometry, kLevels);
   glm::vec3 below = glm::normalize(glm::vec3(scene.environment.toHealpixFrame(-sp.normal)));
-  caps.push_back(makeCap(below, 0.5f * kPi - 1e-3f, geometry));
+  caps.push_back(makeCap(below, 0.5f * kPi - 1e-3f, geometry, kLevels));
   return caps;
 }
 

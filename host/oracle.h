@@ -11,7 +11,8 @@
 // the table must resolve the sharpest lobe (order 5 does for GGX alpha 0.02).
 #pragma once
 
-#include "integrator.h"
+#include "rng.h"
+#include "shading.h"
 
 namespace ht {
 

@@ -29,7 +29,7 @@
 #include <glm/vec3.hpp>
 
 #include "environment.h"
-#include "integrator.h"
+#include "shading.h"
 #include "rng.h"
 #include "scene.h"
 #include "wis.h"

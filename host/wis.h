@@ -33,7 +33,7 @@
 #include <glm/vec3.hpp>
 
 #include "environment.h"
-#include "integrator.h"
+#include "shading.h"
 #include "rng.h"
 #include "sampling.h"
 #include "scene.h"

@@ -20,13 +20,13 @@ const Environment& sunriseEnvironment() {
 
 Environment onePixelSun(float background = 0.02f) { return test::onePixelSun(kEnvOrder, background); }
 
-// The baselines and unbiased HT. The biased variants and the competitors
-// (wis, tsis, ris) have their own tests; the brute-force oracle is too slow
-// for these sample counts (tested below).
+// The baselines, unbiased HT and the HT frontier. The biased variants and
+// the competitors (wis, tsis, ris) have their own tests; the brute-force
+// oracle is too slow for these sample counts (tested below).
 std::vector<MethodInfo> unbiasedMethods() {
   std::vector<MethodInfo> methods;
   for (const MethodInfo& m : allMethods())
-    if (!m.biased && m.method <= Method::HtVis) methods.push_back(m);
+    if (!m.biased && (m.method <= Method::HtVis || m.method == Method::HtFrontier)) methods.push_back(m);
   return methods;
 }
 

@@ -1,0 +1,108 @@
+// HT frontier: product importance sampling with a fixed sample count.
+//
+// The seed's HT estimator draws a random number of samples N, and Var(N)
+// carries almost all of its variance (docs/ht.md). This method keeps HT's
+// density model (the max/avg trees, the BRDF cone bounds and the
+// inner-sphere visibility caps) but draws exactly n directions:
+//
+// 1. Refine an adaptive frontier of HEALPix nodes, always splitting the node
+//    whose non-environment factor is least certain: priority
+//    E x (B - c), with E the node's environment energy, B the bound of
+//    BRDF x cos over it and c the estimate of BRDF x cos x visibility at its
+//    centre (never below a floor of B, so the density stays positive
+//    wherever the integrand can be).
+// 2. Give each node the mass E x c, order the nodes along the nested index
+//    and place n_t systematic points (i + u) / n_t on the mass CDF.
+// 3. Inside a node the point's remaining coordinate descends the
+//    environment's average tree to a leaf (density proportional to the
+//    radiance), and two fresh numbers place it inside the leaf.
+// 4. Where the frontier is coarse for the BRDF (its mass sits in nodes with
+//    B much above c), n_b of the n directions are BRDF samples instead, and
+//    all n are combined by the balance heuristic, which stays unbiased with
+//    stratified points because it sums over the techniques' fixed counts.
+//
+// The estimate is sum f(w) / (n_t p_t(w) + n_b p_b(w)) over all n directions.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "ht.h"
+
+namespace ht {
+
+struct FrontierOptions {
+  // At most this many node splits per shading point; < 0: 16 + n, at most
+  // 256, for n samples (measured best at 4 to 64 spp on the test scenes).
+  int refinements = -1;
+  double tolerance = 0.0;      // stop splitting once the top priority < this x the frontier's mass
+  float brdfFloor = 0.25f;     // node BRDF factor >= this x its bound
+  // Visibility factor of a node the caps cover in part. Low values give its
+  // visible part too little mass (large f / p); 0.85 measured best.
+  float partialVisibility = 0.85f;
+  float coarseRatio = 4.0f;    // a node is coarse for the BRDF when B > this x c
+  float maxBrdfShare = 0.5f;   // at most this share of the n directions from the BRDF
+  bool visibility = true;      // caps in the density
+};
+
+struct FrontierNode {
+  int level;
+  uint64_t node;
+  uint64_t firstLeaf;  // nested index of its first leaf at the environment's order
+  double mass;         // E x c
+  double cdf;          // mass of the nodes before it, normalised
+  float avg;           // environment average luminance
+  float brdfBound;     // B
+  float estimate;      // c
+};
+
+// The frontier at one shading point.
+class Frontier {
+ public:
+  // Refines the frontier at `point`; a Frontier may be rebuilt at another
+  // point, reusing its storage.
+  void build(const HtPoint& point, const FrontierOptions& options, int n);
+
+  const std::vector<FrontierNode>& nodes() const { return nodes_; }
+  double totalMass() const { return total_; }
+  // Share of the mass in nodes that are coarse for the BRDF.
+  double coarseShare() const { return coarse_; }
+  int splits() const { return splits_; }
+
+  // Draws the direction of the point x in [0, 1) of the mass CDF (HEALPix
+  // frame); `jitter` places it inside its leaf. Returns the leaf.
+  uint64_t sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, double& pdf) const;
+  // Density of the direction in `leaf` (0 outside the frontier).
+  double pdf(uint64_t leaf) const;
+
+ private:
+  struct Candidate {
+    FrontierNode node;
+    double priority;  // <= 0: not refinable
+    bool split;
+  };
+  const HtPoint* point_ = nullptr;
+  int order_ = 0;
+  std::vector<Candidate> candidates_;
+  std::vector<std::pair<double, uint32_t>> heap_;
+  std::vector<FrontierNode> nodes_;
+  double total_ = 0.0;
+  double coarse_ = 0.0;
+  int splits_ = 0;
+
+  size_t nodeOfLeaf(uint64_t leaf) const;
+  double density(const FrontierNode& nd, uint64_t leaf) const;
+};
+
+// The splits the frontier makes for n samples.
+int frontierRefinements(const FrontierOptions& options, int n);
+// The n_b of n directions that come from BRDF sampling.
+int frontierBrdfCount(const Frontier& frontier, const FrontierOptions& options, int n);
+
+// HT frontier estimate at a shading point with exactly n directions.
+glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const FrontierOptions& options, int n,
+                             Rng& rng, EstimateCounters& counters);
+
+}  // namespace ht
