@@ -2,93 +2,221 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <memory>
+#include <unordered_map>
+
+#include <glm/geometric.hpp>
 
 #include "healpix.h"
 #include "tree.h"
 
 namespace ht {
+namespace {
+
+// Refines a table from the 12 faces. `factor(level, i, bound, estimate)`
+// gives the bound B and estimate c of BRDF x cos (x visibility) over node i
+// of the tree layout and returns false where the integrand is surely 0.
+template <class Factor>
+void refine(const Environment& env, const std::vector<glm::vec3>& centres, int refinements, double tolerance,
+            float coarseRatio, Factor&& factor, FrontierTable& table) {
+  struct Candidate {
+    FrontierNode node;
+    bool split;
+  };
+  thread_local std::vector<Candidate> candidates;
+  thread_local std::vector<std::pair<double, uint32_t>> heap;
+  candidates.clear();
+  heap.clear();
+  table.nodes.clear();
+  table.splits = 0;
+  table.coarseShare = 0.0;
+  const int order = env.order;
+  double mass = 0.0;  // of the current frontier
+  auto push = [&](int level, uint64_t node) {
+    const uint64_t i = MaxAvgTree::levelOffset(level) + node;
+    const float avg = env.tree.avgv[i];
+    float bound, c;
+    if (!(avg > 0.0f) || !factor(level, i, bound, c)) return;
+    const double energy = double(avg) * healpix::pixelSolidAngle(level);
+    const FrontierNode nd{level, node, node << (2 * (order - level)), centres[i], energy * double(c), bound, c};
+    candidates.push_back({nd, false});
+    mass += nd.mass;
+    // The variance a node adds grows with the spread of the factor over it.
+    const double spread = std::max(0.0, double(bound) - double(c));
+    const double priority = level < order ? energy * spread * spread / double(c) : 0.0;
+    if (priority > 0.0) {
+      heap.emplace_back(priority, uint32_t(candidates.size() - 1));
+      std::push_heap(heap.begin(), heap.end());
+    }
+  };
+  for (int f = 0; f < 12; ++f) push(0, uint64_t(f));
+  for (; table.splits < refinements && !heap.empty(); ++table.splits) {
+    if (heap.front().first < tolerance * mass) break;
+    std::pop_heap(heap.begin(), heap.end());
+    const uint32_t top = heap.back().second;
+    heap.pop_back();
+    candidates[top].split = true;
+    mass -= candidates[top].node.mass;
+    const int level = candidates[top].node.level + 1;
+    const uint64_t first = 4 * candidates[top].node.node;
+    for (uint64_t j = 0; j < 4; ++j) push(level, first + j);
+  }
+  for (const Candidate& c : candidates)
+    if (!c.split) table.nodes.push_back(c.node);
+  std::sort(table.nodes.begin(), table.nodes.end(),
+            [](const FrontierNode& a, const FrontierNode& b) { return a.firstLeaf < b.firstLeaf; });
+  double total = 0.0, coarse = 0.0;
+  for (const FrontierNode& nd : table.nodes) {
+    total += nd.mass;
+    if (nd.brdfBound > coarseRatio * nd.estimate) coarse += nd.mass;
+  }
+  table.coarseShare = total > 0.0 ? coarse / total : 0.0;
+}
+
+// cos(max(0, angle(a, b) - radius)): the largest cosine to b over a cone.
+float cosClosest(const glm::vec3& a, const glm::vec3& b, float cosR, float sinR) {
+  float c = std::clamp(glm::dot(a, b), -1.0f, 1.0f);
+  if (c >= cosR) return 1.0f;
+  return c * cosR + std::sqrt(1.0f - c * c) * sinR;
+}
+
+struct SharedKey {
+  uint64_t tree;
+  glm::vec3 normal;
+  int refinements;
+  float floor, coarseRatio;
+  double tolerance;
+  bool operator==(const SharedKey& o) const {
+    return tree == o.tree && normal == o.normal && refinements == o.refinements && floor == o.floor &&
+           coarseRatio == o.coarseRatio && tolerance == o.tolerance;
+  }
+};
+struct SharedKeyHash {
+  size_t operator()(const SharedKey& k) const {
+    uint32_t b[3];
+    std::memcpy(b, &k.normal, sizeof b);
+    uint64_t h = k.tree * 0x9e3779b97f4a7c15ull;
+    for (uint32_t v : b) h = (h ^ v) * 0xbf58476d1ce4e5b9ull;
+    return size_t(h ^ (h >> 31) ^ uint64_t(uint32_t(k.refinements)));
+  }
+};
+
+// The Lambert table of a flat surface's normal, per thread.
+const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOptions& options) {
+  thread_local std::unordered_map<SharedKey, std::unique_ptr<FrontierTable>, SharedKeyHash> cache;
+  thread_local uint64_t cachedTree = 0;
+  const SharedKey key{point.env.tree.id, point.n, options.sharedRefinements, options.brdfFloor, options.coarseRatio,
+                      options.tolerance};
+  // Tables of an earlier environment are never used again.
+  if (cachedTree != key.tree || cache.size() >= 256) cache.clear();
+  cachedTree = key.tree;
+  std::unique_ptr<FrontierTable>& entry = cache[key];
+  if (entry) return *entry;
+  entry = std::make_unique<FrontierTable>();
+  const HtGeometry& g = point.geometry;
+  // Albedo and 1/pi scale every node alike: the shape is cos+ alone.
+  auto factor = [&](int, uint64_t i, float& bound, float& c) {
+    const glm::vec3& axis = g.centers[i];
+    bound = cosClosest(axis, point.n, g.cosSinRadius[i].x, g.cosSinRadius[i].y);
+    if (!(bound > 0.0f)) return false;
+    c = std::max(std::max(glm::dot(axis, point.n), 0.0f), options.brdfFloor * bound);
+    return true;
+  };
+  refine(point.env, g.centers, options.sharedRefinements, options.tolerance, options.coarseRatio, factor, *entry);
+  return *entry;
+}
+
+}  // namespace
 
 int frontierRefinements(const FrontierOptions& options, int n) {
   return options.refinements >= 0 ? options.refinements : std::min(16 + std::max(n, 0), 256);
 }
 
-void Frontier::build(const HtPoint& point, const FrontierOptions& options, int n) {
-  const int refinements = frontierRefinements(options, n);
+void Frontier::build(const HtPoint& point, const FrontierOptions& options, int n, bool flat) {
   point_ = &point;
   order_ = point.env.order;
-  candidates_.clear();
-  heap_.clear();
-  nodes_.clear();
-  total_ = coarse_ = 0.0;
-  splits_ = 0;
-  const MaxAvgTree& tree = point.env.tree;
-  double mass = 0.0;  // of the current frontier
-  auto push = [&](int level, uint64_t node) {
-    const uint64_t i = MaxAvgTree::levelOffset(level) + node;
-    const float avg = tree.avgv[i];
-    if (!(avg > 0.0f)) return;
-    const float bound = point.brdfBound(i);
-    if (!(bound > 0.0f)) return;
-    float vis = 1.0f;
-    if (options.visibility) {
-      const int cls = point.visibilityClass(point.geometry.centers[i], level);
-      if (cls == 0) return;
-      if (cls == 2) vis = options.partialVisibility;
+  const bool lambert = point.material.type == MaterialType::Lambert && !point.table;
+  if (flat && lambert && options.sharedRefinements >= 0 && point.woLocal.z > 0.0f) {
+    table_ = &sharedLambertTable(point, options);
+    // The point's own caps, each with the faces it can reach. The cap of
+    // the surface's own plane is left out: the table has no mass below it
+    // but for nodes the horizon cuts, where cos+ is small.
+    struct FaceCaps {
+      const Cap* cap;
+      uint32_t faces;
+    };
+    thread_local std::vector<FaceCaps> caps;
+    caps.clear();
+    if (options.visibility)
+      for (const Cap& c : point.caps) {
+        if (glm::dot(c.axis, point.n) < -0.9999f) continue;
+        uint32_t faces = 0;
+        for (uint32_t f = 0; f < 12; ++f)
+          if (glm::dot(point.geometry.centers[f], c.axis) > c.cosOutside[0]) faces |= 1u << f;
+        if (faces) caps.push_back({&c, faces});
+      }
+    mass_.resize(table_->nodes.size());
+    for (size_t k = 0; k < table_->nodes.size(); ++k) {
+      const FrontierNode& nd = table_->nodes[k];
+      const uint32_t face = 1u << uint32_t(nd.node >> (2 * nd.level));
+      float vis = 1.0f;
+      for (const FaceCaps& fc : caps) {
+        if (!(fc.faces & face)) continue;
+        const float d = glm::dot(nd.centre, fc.cap->axis);
+        if (d >= fc.cap->cosInside[size_t(nd.level)]) {
+          vis = 0.0f;
+          break;
+        }
+        if (d > fc.cap->cosOutside[size_t(nd.level)]) vis = options.partialVisibility;
+      }
+      mass_[k] = nd.mass * double(vis);
     }
-    const float c = std::max(point.brdfValue(point.geometry.centers[i]), options.brdfFloor * bound) * vis;
-    const double energy = double(avg) * healpix::pixelSolidAngle(level);
-    const FrontierNode nd{level, node, node << (2 * (order_ - level)), energy * double(c), 0.0, avg, bound, c};
-    const double priority = level < order_ ? energy * std::max(0.0, double(bound) - double(c)) : 0.0;
-    candidates_.push_back({nd, priority, false});
-    mass += nd.mass;
-    if (priority > 0.0) {
-      heap_.emplace_back(priority, uint32_t(candidates_.size() - 1));
-      std::push_heap(heap_.begin(), heap_.end());
-    }
-  };
-  for (int f = 0; f < 12; ++f) push(0, uint64_t(f));
-  for (; splits_ < refinements && !heap_.empty(); ++splits_) {
-    if (heap_.front().first < options.tolerance * mass) break;
-    std::pop_heap(heap_.begin(), heap_.end());
-    const uint32_t top = heap_.back().second;
-    heap_.pop_back();
-    candidates_[top].split = true;
-    mass -= candidates_[top].node.mass;
-    const int level = candidates_[top].node.level + 1;
-    const uint64_t first = 4 * candidates_[top].node.node;
-    for (uint64_t j = 0; j < 4; ++j) push(level, first + j);
+  } else {
+    table_ = &own_;
+    auto factor = [&](int level, uint64_t i, float& bound, float& c) {
+      bound = point.brdfBound(i);
+      if (!(bound > 0.0f)) return false;
+      float vis = 1.0f;
+      if (options.visibility) {
+        const int cls = point.visibilityClass(point.geometry.centers[i], level);
+        if (cls == 0) return false;
+        if (cls == 2) vis = options.partialVisibility;
+      }
+      c = std::max(point.brdfValue(point.geometry.centers[i]), options.brdfFloor * bound) * vis;
+      return true;
+    };
+    refine(point.env, point.geometry.centers, frontierRefinements(options, n), options.tolerance, options.coarseRatio, factor, own_);
+    mass_.resize(own_.nodes.size());
+    for (size_t k = 0; k < own_.nodes.size(); ++k) mass_[k] = own_.nodes[k].mass;
   }
-  for (const Candidate& c : candidates_)
-    if (!c.split) nodes_.push_back(c.node);
-  std::sort(nodes_.begin(), nodes_.end(),
-            [](const FrontierNode& a, const FrontierNode& b) { return a.firstLeaf < b.firstLeaf; });
-  double coarse = 0.0;
-  for (FrontierNode& nd : nodes_) {
-    nd.cdf = total_;
-    total_ += nd.mass;
-    if (nd.brdfBound > options.coarseRatio * nd.estimate) coarse += nd.mass;
+  cdf_.resize(mass_.size());
+  total_ = 0.0;
+  for (size_t k = 0; k < mass_.size(); ++k) {
+    cdf_[k] = total_;
+    total_ += mass_[k];
   }
-  if (total_ > 0.0) {
-    for (FrontierNode& nd : nodes_) nd.cdf /= total_;
-    coarse_ = coarse / total_;
-  }
+  if (total_ > 0.0)
+    for (double& c : cdf_) c /= total_;
 }
 
 size_t Frontier::nodeOfLeaf(uint64_t leaf) const {
-  auto it = std::upper_bound(nodes_.begin(), nodes_.end(), leaf,
+  const std::vector<FrontierNode>& nodes = table_->nodes;
+  auto it = std::upper_bound(nodes.begin(), nodes.end(), leaf,
                              [](uint64_t l, const FrontierNode& nd) { return l < nd.firstLeaf; });
-  if (it == nodes_.begin()) return nodes_.size();
+  if (it == nodes.begin()) return nodes.size();
   --it;
   const uint64_t leaves = uint64_t(1) << (2 * (order_ - it->level));
-  return leaf - it->firstLeaf < leaves ? size_t(it - nodes_.begin()) : nodes_.size();
+  return leaf - it->firstLeaf < leaves ? size_t(it - nodes.begin()) : nodes.size();
 }
 
 // The node's share times the probability of the leaf on the way down the
 // average tree, per unit solid angle.
-double Frontier::density(const FrontierNode& nd, uint64_t leaf) const {
+double Frontier::density(size_t k, uint64_t leaf) const {
   const MaxAvgTree& tree = point_->env.tree;
-  double p = nd.mass / total_;
-  for (int level = order_; level > nd.level; --level) {
+  const int top = table_->nodes[k].level;
+  double p = mass_[k] / total_;
+  for (int level = order_; level > top; --level) {
     const uint64_t first = MaxAvgTree::levelOffset(level) + (leaf & ~uint64_t(3));
     const double sum = double(tree.avgv[first]) + double(tree.avgv[first + 1]) + double(tree.avgv[first + 2]) +
                        double(tree.avgv[first + 3]);
@@ -100,16 +228,19 @@ double Frontier::density(const FrontierNode& nd, uint64_t leaf) const {
 
 double Frontier::pdf(uint64_t leaf) const {
   const size_t k = nodeOfLeaf(leaf);
-  return k < nodes_.size() ? density(nodes_[k], leaf) : 0.0;
+  return k < table_->nodes.size() && mass_[k] > 0.0 ? density(k, leaf) : 0.0;
 }
 
 uint64_t Frontier::sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, double& pdf) const {
   const MaxAvgTree& tree = point_->env.tree;
-  auto it = std::upper_bound(nodes_.begin(), nodes_.end(), x,
-                             [](double v, const FrontierNode& nd) { return v < nd.cdf; });
-  const FrontierNode& nd = *(it == nodes_.begin() ? it : it - 1);
-  const double share = nd.mass / total_;
-  double t = std::clamp((x - nd.cdf) / share, 0.0, 1.0);
+  // The last node whose CDF interval starts at or before x and has mass.
+  size_t k = size_t(std::upper_bound(cdf_.begin(), cdf_.end(), x) - cdf_.begin());
+  k = k > 0 ? k - 1 : 0;
+  while (k > 0 && !(mass_[k] > 0.0)) --k;
+  while (!(mass_[k] > 0.0)) ++k;
+  const FrontierNode& nd = table_->nodes[k];
+  const double share = mass_[k] / total_;
+  double t = std::clamp((x - cdf_[k]) / share, 0.0, 1.0);
   double p = share;
   uint64_t node = nd.node;
   for (int level = nd.level + 1; level <= order_; ++level) {
@@ -146,8 +277,8 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
   htOptions.budgetRefinements = -1;
   const HtPoint point(scene, sp, htOptions);
   thread_local Frontier frontier;
-  frontier.build(point, options, n);
-  counters.htNodes += uint64_t(12 + 4 * frontier.splits());
+  frontier.build(point, options, n, sp.flat);
+  if (!frontier.shared()) counters.htNodes += uint64_t(12 + 4 * frontier.splits());
   if (!(frontier.totalMass() > 0.0)) return glm::vec3(0.0f);
   const Shading sh(scene, sp, counters);
   const int nb = frontierBrdfCount(frontier, options, n);

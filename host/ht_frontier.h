@@ -7,7 +7,7 @@
 //
 // 1. Refine an adaptive frontier of HEALPix nodes, always splitting the node
 //    whose non-environment factor is least certain: priority
-//    E x (B - c), with E the node's environment energy, B the bound of
+//    E (B - c)^2 / c, with E the node's environment energy, B the bound of
 //    BRDF x cos over it and c the estimate of BRDF x cos x visibility at its
 //    centre (never below a floor of B, so the density stays positive
 //    wherever the integrand can be).
@@ -20,6 +20,13 @@
 //    B much above c), n_b of the n directions are BRDF samples instead, and
 //    all n are combined by the balance heuristic, which stays unbiased with
 //    stratified points because it sums over the techniques' fixed counts.
+//
+// Lambert tables do not depend on wo, and their shape not on the albedo: on
+// a flat surface every point has the same table but for visibility. It is
+// refined once per normal (and thread), further than a point's own table,
+// and each point applies its own visibility caps to its nodes. The table is
+// a function of the normal and the environment alone, so sharing never
+// changes an image.
 //
 // The estimate is sum f(w) / (n_t p_t(w) + n_b p_b(w)) over all n directions.
 #pragma once
@@ -37,39 +44,47 @@ struct FrontierOptions {
   // At most this many node splits per shading point; < 0: 16 + n, at most
   // 256, for n samples (measured best at 4 to 64 spp on the test scenes).
   int refinements = -1;
-  double tolerance = 0.0;      // stop splitting once the top priority < this x the frontier's mass
-  float brdfFloor = 0.25f;     // node BRDF factor >= this x its bound
+  int sharedRefinements = 192;  // splits of a flat surface's shared Lambert table (< 0: not shared)
+  double tolerance = 0.0;       // stop splitting once the top priority < this x the frontier's mass
+  float brdfFloor = 0.25f;      // node BRDF factor >= this x its bound
   // Visibility factor of a node the caps cover in part. Low values give its
   // visible part too little mass (large f / p); 0.85 measured best.
   float partialVisibility = 0.85f;
-  float coarseRatio = 4.0f;    // a node is coarse for the BRDF when B > this x c
-  float maxBrdfShare = 0.5f;   // at most this share of the n directions from the BRDF
-  bool visibility = true;      // caps in the density
+  float coarseRatio = 4.0f;     // a node is coarse for the BRDF when B > this x c
+  float maxBrdfShare = 0.5f;    // at most this share of the n directions from the BRDF
+  bool visibility = true;       // caps in the density
 };
 
 struct FrontierNode {
   int level;
   uint64_t node;
   uint64_t firstLeaf;  // nested index of its first leaf at the environment's order
+  glm::vec3 centre;    // HEALPix frame
   double mass;         // E x c
-  double cdf;          // mass of the nodes before it, normalised
-  float avg;           // environment average luminance
   float brdfBound;     // B
   float estimate;      // c
 };
 
-// The frontier at one shading point.
+// Nodes sorted along the nested index, with their masses.
+struct FrontierTable {
+  std::vector<FrontierNode> nodes;
+  double coarseShare = 0.0;  // share of the mass in nodes coarse for the BRDF
+  int splits = 0;
+};
+
+// The frontier a shading point samples: a table and the point's own masses.
 class Frontier {
  public:
-  // Refines the frontier at `point`; a Frontier may be rebuilt at another
-  // point, reusing its storage.
-  void build(const HtPoint& point, const FrontierOptions& options, int n);
+  // Prepares the frontier at `point` for n samples, reusing this object's
+  // storage and, on a flat surface, the calling thread's shared tables.
+  void build(const HtPoint& point, const FrontierOptions& options, int n, bool flat);
 
-  const std::vector<FrontierNode>& nodes() const { return nodes_; }
+  const FrontierTable& table() const { return *table_; }
   double totalMass() const { return total_; }
-  // Share of the mass in nodes that are coarse for the BRDF.
-  double coarseShare() const { return coarse_; }
-  int splits() const { return splits_; }
+  double coarseShare() const { return table_->coarseShare; }
+  bool shared() const { return table_ != &own_; }
+  int splits() const { return table_->splits; }
+  size_t size() const { return table_->nodes.size(); }
 
   // Draws the direction of the point x in [0, 1) of the mass CDF (HEALPix
   // frame); `jitter` places it inside its leaf. Returns the leaf.
@@ -78,25 +93,18 @@ class Frontier {
   double pdf(uint64_t leaf) const;
 
  private:
-  struct Candidate {
-    FrontierNode node;
-    double priority;  // <= 0: not refinable
-    bool split;
-  };
   const HtPoint* point_ = nullptr;
   int order_ = 0;
-  std::vector<Candidate> candidates_;
-  std::vector<std::pair<double, uint32_t>> heap_;
-  std::vector<FrontierNode> nodes_;
+  FrontierTable own_;
+  const FrontierTable* table_ = &own_;
+  std::vector<double> mass_, cdf_;  // this point's masses and their normalised prefix sums
   double total_ = 0.0;
-  double coarse_ = 0.0;
-  int splits_ = 0;
 
   size_t nodeOfLeaf(uint64_t leaf) const;
-  double density(const FrontierNode& nd, uint64_t leaf) const;
+  double density(size_t k, uint64_t leaf) const;
 };
 
-// The splits the frontier makes for n samples.
+// The splits a per-point frontier makes for n samples.
 int frontierRefinements(const FrontierOptions& options, int n);
 // The n_b of n directions that come from BRDF sampling.
 int frontierBrdfCount(const Frontier& frontier, const FrontierOptions& options, int n);

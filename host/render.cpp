@@ -40,7 +40,7 @@ RenderResult renderCpu(const Scene& scene, const RenderSettings& s) {
           out = scene.environment.eval(ray.dir);
           continue;
         }
-        ShadingPoint sp{hit.position, hit.normal, -ray.dir, &scene.materials[hit.material]};
+        ShadingPoint sp{hit.position, hit.normal, -ray.dir, &scene.materials[hit.material], hit.flat};
         Rng rng(s.seed, pixelStream(x, y, s.width));
         const uint64_t before = local.counters.directions;
         out = estimateDirect(scene, sp, s.method, s.spp, rng, local.counters, s.options);

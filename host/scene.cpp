@@ -358,6 +358,7 @@ bool intersectScene(const Scene& scene, const Ray& ray, float tMin, float tMax, 
       hit.position = ray.origin + t * ray.dir;
       hit.normal = glm::normalize(hit.position - s.center);
       hit.material = s.material;
+      hit.flat = false;
     }
   for (const Plane& p : scene.planes)
     if (hitPlane(p, ray, tMin, tMax, t)) {
@@ -367,6 +368,7 @@ bool intersectScene(const Scene& scene, const Ray& ray, float tMin, float tMax, 
       hit.position = ray.origin + t * ray.dir;
       hit.normal = p.normal;
       hit.material = p.material;
+      hit.flat = true;
     }
   if (any && glm::dot(hit.normal, ray.dir) > 0.0f) hit.normal = -hit.normal;
   return any;

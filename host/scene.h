@@ -63,6 +63,7 @@ struct Hit {
   glm::vec3 position{0.0f};
   glm::vec3 normal{0.0f};  // geometric normal, unit, facing the incoming ray
   int material = -1;
+  bool flat = false;       // on a plane: every point of the surface has this normal
 };
 
 // Parses and validates the JSON scene; throws ht::Error (with line and

@@ -17,6 +17,7 @@ struct ShadingPoint {
   glm::vec3 normal;  // unit, on the side of wo
   glm::vec3 wo;      // unit, towards the viewer
   const Material* material;
+  bool flat = false;  // on a plane: points nearby share the normal
 };
 
 struct EstimateCounters {

@@ -1,14 +1,17 @@
 #include "tree.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cassert>
 
 namespace ht {
 
 MaxAvgTree buildMaxAvgTree(int order, std::span<const float> leaves) {
   assert(leaves.size() == MaxAvgTree::levelSize(order));
+  static std::atomic<uint64_t> nextId{1};
   MaxAvgTree t;
   t.order = order;
+  t.id = nextId.fetch_add(1, std::memory_order_relaxed);
   uint64_t nodes = MaxAvgTree::levelOffset(order + 1);
   t.maxv.resize(nodes);
   t.avgv.resize(nodes);

@@ -15,6 +15,7 @@ namespace ht {
 
 struct MaxAvgTree {
   int order = 0;             // finest level
+  uint64_t id = 0;           // distinct for every tree built in the process (copies keep it)
   std::vector<float> maxv;   // per node: maximum over its leaves
   std::vector<float> avgv;   // per node: mean over its leaves
 

@@ -74,7 +74,7 @@ TEST(Stress, EveryUnbiasedMethodAgreesWithBruteForce) {
         ShadingSetup s;
         s.name = std::filesystem::path(path).stem().string() + " @" + std::to_string(fx) + "," + std::to_string(fy);
         s.scene = scene;
-        s.sp = {hit.position, hit.normal, -ray.dir, nullptr};
+        s.sp = {hit.position, hit.normal, -ray.dir, nullptr, hit.flat};
         // The harness shades material 0: put the hit's material first.
         std::swap(s.scene.materials[0], s.scene.materials[hit.material]);
         for (Sphere& sp : s.scene.spheres)
