@@ -14,9 +14,10 @@
 namespace ht {
 namespace {
 
-// Refines a table from the 12 faces. `factor(level, i, bound, estimate)`
-// gives the bound B and estimate c of BRDF x cos (x visibility) over node i
-// of the tree layout and returns false where the integrand is surely 0.
+// Refines a table from the 12 faces. `factor(level, i, bound, estimate,
+// centre)` gives the bound B and estimate c of BRDF x cos (x visibility) over
+// node i of the tree layout and the BRDF x cos at its centre, and returns
+// false where the integrand is surely 0.
 template <class Factor>
 void refine(const Environment& env, const std::vector<glm::vec3>& centres, int refinements, double tolerance,
             float coarseRatio, Factor&& factor, FrontierTable& table) {
@@ -36,10 +37,10 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
   auto push = [&](int level, uint64_t node) {
     const uint64_t i = MaxAvgTree::levelOffset(level) + node;
     const float avg = env.tree.avgv[i];
-    float bound, c;
-    if (!(avg > 0.0f) || !factor(level, i, bound, c)) return;
+    float bound, c, centre;
+    if (!(avg > 0.0f) || !factor(level, i, bound, c, centre)) return;
     const double energy = double(avg) * healpix::pixelSolidAngle(level);
-    const FrontierNode nd{level, node, node << (2 * (order - level)), centres[i], energy * double(c), bound, c};
+    const FrontierNode nd{level, node, node << (2 * (order - level)), centres[i], energy * double(c), bound, centre};
     candidates.push_back({nd, false});
     mass += nd.mass;
     // The variance a node adds grows with the spread of the factor over it.
@@ -69,7 +70,7 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
   double total = 0.0, coarse = 0.0;
   for (const FrontierNode& nd : table.nodes) {
     total += nd.mass;
-    if (nd.brdfBound > coarseRatio * nd.estimate) coarse += nd.mass;
+    if (nd.brdfBound > coarseRatio * nd.brdfCentre) coarse += nd.mass;
   }
   table.coarseShare = total > 0.0 ? coarse / total : 0.0;
 }
@@ -116,11 +117,12 @@ const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOpti
   entry = std::make_unique<FrontierTable>();
   const HtGeometry& g = point.geometry;
   // Albedo and 1/pi scale every node alike: the shape is cos+ alone.
-  auto factor = [&](int, uint64_t i, float& bound, float& c) {
+  auto factor = [&](int, uint64_t i, float& bound, float& c, float& centre) {
     const glm::vec3& axis = g.centers[i];
     bound = cosClosest(axis, point.n, g.cosSinRadius[i].x, g.cosSinRadius[i].y);
     if (!(bound > 0.0f)) return false;
-    c = std::max(std::max(glm::dot(axis, point.n), 0.0f), options.brdfFloor * bound);
+    centre = std::max(glm::dot(axis, point.n), 0.0f);
+    c = std::max(centre, options.brdfFloor * bound);
     return true;
   };
   refine(point.env, g.centers, options.sharedRefinements, options.tolerance, options.coarseRatio, factor, *entry);
@@ -174,7 +176,7 @@ void Frontier::build(const HtPoint& point, const FrontierOptions& options, int n
     }
   } else {
     table_ = &own_;
-    auto factor = [&](int level, uint64_t i, float& bound, float& c) {
+    auto factor = [&](int level, uint64_t i, float& bound, float& c, float& centre) {
       bound = point.brdfBound(i);
       if (!(bound > 0.0f)) return false;
       float vis = 1.0f;
@@ -183,7 +185,8 @@ void Frontier::build(const HtPoint& point, const FrontierOptions& options, int n
         if (cls == 0) return false;
         if (cls == 2) vis = options.partialVisibility;
       }
-      c = std::max(point.brdfValue(point.geometry.centers[i]), options.brdfFloor * bound) * vis;
+      centre = point.brdfValue(point.geometry.centers[i]);
+      c = std::max(centre, options.brdfFloor * bound) * vis;
       return true;
     };
     refine(point.env, point.geometry.centers, frontierRefinements(options, n), options.tolerance, options.coarseRatio, factor, own_);
@@ -265,7 +268,9 @@ uint64_t Frontier::sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, 
 
 int frontierBrdfCount(const Frontier& frontier, const FrontierOptions& options, int n) {
   const double share = std::min(frontier.coarseShare(), double(options.maxBrdfShare));
-  return std::clamp(int(std::lround(share * n)), 0, n);
+  // At least one direction from the table: a lone BRDF sample would miss the
+  // light the table finds.
+  return std::clamp(int(std::lround(share * n)), 0, std::max(n - 1, 0));
 }
 
 glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const FrontierOptions& options, int n,

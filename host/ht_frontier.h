@@ -50,7 +50,7 @@ struct FrontierOptions {
   // Visibility factor of a node the caps cover in part. Low values give its
   // visible part too little mass (large f / p); 0.85 measured best.
   float partialVisibility = 0.85f;
-  float coarseRatio = 4.0f;     // a node is coarse for the BRDF when B > this x c
+  float coarseRatio = 4.0f;     // a node is coarse for the BRDF when B > this x its centre value
   float maxBrdfShare = 0.5f;    // at most this share of the n directions from the BRDF
   bool visibility = true;       // caps in the density
 };
@@ -62,7 +62,7 @@ struct FrontierNode {
   glm::vec3 centre;    // HEALPix frame
   double mass;         // E x c
   float brdfBound;     // B
-  float estimate;      // c
+  float brdfCentre;    // BRDF x cos at the centre
 };
 
 // Nodes sorted along the nested index, with their masses.

@@ -1,0 +1,182 @@
+// The HT frontier (ht-frontier): its density against its own samples, its
+// fixed sample count, unbiasedness with and without the shared tables of
+// flat surfaces, and images that sharing never changes.
+#include <gtest/gtest.h>
+
+#include <tbb/global_control.h>
+
+#include "chi2.h"
+#include "estimator_harness.h"
+#include "ht_frontier.h"
+#include "render.h"
+
+using namespace ht;
+using namespace ht::test;
+
+namespace {
+
+constexpr int kEnvOrder = 5;
+
+const Environment& sunrise() {
+  static const Environment env = sunriseAt(kEnvOrder);
+  return env;
+}
+
+ShadingSetup flat(ShadingSetup s) {
+  s.sp.flat = true;
+  return s;
+}
+
+// Shading points that take each path: a flat Lambert point (shared table),
+// a Lambert point off any plane's table (own table), glossy points whose
+// tables are coarse for the BRDF (BRDF samples by MIS), occluders.
+std::vector<ShadingSetup> setups() {
+  std::vector<ShadingSetup> s;
+  s.push_back(flat(makeSetup("flat-diffuse-sunrise-occluded", sunrise(), lambert(0.8f), {0.3f, 1.0f, 0.2f},
+                             {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}, {glm::vec3(1.5f, 0.4f, -0.3f), 0.4f, 0}})));
+  s.push_back(makeSetup("diffuse-sunrise", sunrise(), lambert(0.8f), {0.3f, 1.0f, 0.2f}));
+  s.push_back(makeSetup("ggx0.05-sunrise", sunrise(), ggx(0.05f, glm::vec3(0.9f, 0.7f, 0.4f)), {0.2f, 0.5f, -0.8f}));
+  s.push_back(makeSetup("phong-sunrise-occluded", sunrise(), phong(40.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
+                        {-0.4f, 0.6f, 0.3f}, {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}}));
+  s.push_back(flat(makeSetup("flat-diffuse-sun-shadowed", onePixelSun(kEnvOrder), lambert(0.8f), {0.0f, 1.0f, 0.3f},
+                             {{2.0f * kSunDir, 0.4f, 0}})));
+  s.push_back(makeSetup("ggx0.3-sun", onePixelSun(kEnvOrder), ggx(0.3f, glm::vec3(0.04f), glm::vec3(0.5f)),
+                        mirrorOf(kSunDir)));
+  s.push_back(makeSetup("ggx0.01-sunrise", sunrise(), ggx(0.01f, glm::vec3(0.95f)), {0.3f, 0.6f, -0.5f}));
+  return s;
+}
+
+struct PreparedPoint {
+  ShadingPoint sp;
+  HtOptions htOptions;
+  std::unique_ptr<HtPoint> point;
+  Frontier frontier;
+};
+
+void prepare(const ShadingSetup& s, const FrontierOptions& options, int n, PreparedPoint& p) {
+  p.sp = s.sp;
+  p.sp.material = &s.scene.materials[0];
+  p.htOptions.visibility = options.visibility;
+  p.htOptions.budgetRefinements = -1;
+  p.point = std::make_unique<HtPoint>(s.scene, p.sp, p.htOptions);
+  p.frontier.build(*p.point, options, n, p.sp.flat);
+}
+
+}  // namespace
+
+// Directions drawn from uniform points of the mass CDF follow the density
+// the frontier reports (chi-square over HEALPix bins, Sidak-corrected over
+// the setups), and each sample's pdf is the one pdf(leaf) gives.
+TEST(Frontier, DensityMatchesItsSamples) {
+  const std::vector<ShadingSetup> all = setups();
+  const double alpha = sidakAlpha(0.01, int(all.size()));
+  constexpr int kBinOrder = 3;
+  constexpr int kSamples = 200000;
+  for (const ShadingSetup& s : all) {
+    PreparedPoint p;
+    prepare(s, FrontierOptions{}, 16, p);
+    ASSERT_GT(p.frontier.totalMass(), 0.0) << s.name;
+    const Environment& env = s.scene.environment;
+    std::vector<double> expected(healpix::pixelCount(kBinOrder), 0.0);
+    for (uint64_t leaf = 0; leaf < healpix::pixelCount(env.order); ++leaf)
+      expected[leaf >> (2 * (env.order - kBinOrder))] += p.frontier.pdf(leaf) * env.pixelSolidAngle() * kSamples;
+    std::vector<double> observed(expected.size(), 0.0);
+    Rng rng(7, 3);
+    double worstPdf = 0.0;
+    for (int i = 0; i < kSamples; ++i) {
+      glm::dvec3 dir;
+      double pdf;
+      const uint64_t leaf = p.frontier.sample(rng.next(), rng.next2(), dir, pdf);
+      ASSERT_EQ(healpix::vecToPix(env.order, dir) >> 2 * (env.order - kBinOrder), leaf >> 2 * (env.order - kBinOrder));
+      observed[binIndex(kBinOrder, dir)] += 1.0;
+      worstPdf = std::max(worstPdf, std::abs(pdf / p.frontier.pdf(leaf) - 1.0));
+    }
+    EXPECT_LT(worstPdf, 1e-9) << s.name;
+    const Chi2Result r = chi2Test(observed, expected);
+    EXPECT_GT(r.pValue, alpha) << s.name << "\n" << describe(r, observed, expected);
+  }
+}
+
+// Every shading point with light gets exactly n directions and at most n
+// shadow rays, at every n.
+TEST(Frontier, CountIsExactlyN) {
+  for (const ShadingSetup& s : setups()) {
+    ShadingPoint sp = s.sp;
+    sp.material = &s.scene.materials[0];
+    for (int n : {1, 2, 4, 16, 64, 256}) {
+      for (uint32_t stream = 0; stream < 20; ++stream) {
+        Rng rng(11, stream);
+        EstimateCounters c;
+        estimateDirect(s.scene, sp, Method::HtFrontier, n, rng, c);
+        ASSERT_EQ(c.directions, uint64_t(n)) << s.name << " n " << n;
+        ASSERT_LE(c.shadowRays, uint64_t(n)) << s.name << " n " << n;
+      }
+    }
+  }
+}
+
+// Glossy points whose frontier is coarse for the lobe take part of their n
+// from BRDF sampling; flat Lambert points take none and use a shared table.
+TEST(Frontier, PathsTaken) {
+  const std::vector<ShadingSetup> all = setups();
+  FrontierOptions options;
+  PreparedPoint glossy, diffuse;
+  prepare(all[6], options, 16, glossy);
+  prepare(all[0], options, 16, diffuse);
+  EXPECT_FALSE(glossy.frontier.shared());
+  EXPECT_GT(frontierBrdfCount(glossy.frontier, options, 16), 0);
+  EXPECT_TRUE(diffuse.frontier.shared());
+  EXPECT_EQ(frontierBrdfCount(diffuse.frontier, options, 16), 0);
+  EXPECT_EQ(diffuse.frontier.splits(), options.sharedRefinements);
+  // The occluders block some of the shared table's nodes for this point only.
+  PreparedPoint open;
+  ShadingSetup noOccluders = all[0];
+  noOccluders.scene.spheres.clear();
+  prepare(noOccluders, options, 16, open);
+  EXPECT_LT(diffuse.frontier.totalMass(), open.frontier.totalMass());
+}
+
+// The mean of many estimates matches the brute-force integral (z-test,
+// Sidak-corrected over setups, sample counts and channels), with the balance
+// heuristic's BRDF share forced high and off as well as by default.
+TEST(Frontier, UnbiasedAgainstBruteForce) {
+  const std::vector<ShadingSetup> all = setups();
+  const std::vector<int> counts = {1, 5, 16};
+  const int tests = int(all.size() * counts.size() * 3);
+  const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
+  for (const ShadingSetup& s : all) {
+    const glm::dvec3 ref = bruteForceIntegral(s, 8);
+    const glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, 4));
+    for (int n : counts) {
+      MeanAndError e = repeatedEstimates(s, Method::HtFrontier, 4000, n, 500 + n);
+      for (int c = 0; c < 3; ++c) {
+        const double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
+        ASSERT_GT(se, 0.0) << s.name;
+        EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
+            << s.name << " n " << n << " channel " << c << ": mean " << e.mean[c] << " reference " << ref[c];
+      }
+    }
+  }
+}
+
+// A shared table is a function of its normal and environment alone: the
+// image is the same whatever the thread count or what was rendered before.
+TEST(Frontier, SharingNeverChangesTheImage) {
+  Scene scene = readSceneFile(std::string(HT_TEST_DATA) + "/scenes/spheres.json");
+  scene.environment = sunriseAt(6);
+  RenderSettings rs;
+  rs.method = Method::HtFrontier;
+  rs.spp = 4;
+  rs.width = 48;
+  rs.height = 24;
+  RenderResult first = renderCpu(scene, rs);
+  RenderResult again = renderCpu(scene, rs);
+  RenderResult oneThread;
+  {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    oneThread = renderCpu(scene, rs);
+  }
+  EXPECT_EQ(first.image.pixels, again.image.pixels);
+  EXPECT_EQ(first.image.pixels, oneThread.image.pixels);
+  EXPECT_EQ(first.counters.directions, uint64_t(rs.spp) * first.shadedPixels);
+}
