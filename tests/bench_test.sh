@@ -22,7 +22,7 @@ env["nside"] = 64
 Path(sys.argv[2]).write_text(json.dumps(scene))
 EOF
 
-$py "$src/tools/bench.py" --htrender "$htrender" --scene "$tmp/scene.json" --methods mis,ht-vis --spp 1,4 \
+$py "$src/tools/bench.py" --htrender "$htrender" --scene "$tmp/scene.json" --methods mis,ht-vis,ht-frontier --spp 1,4 \
   --runs 1 --width 32 --height 16 --ref-spp 256 --out "$tmp/bench" 2> "$tmp/bench.log" ||
   { cat "$tmp/bench.log"; exit 1; }
 $py "$src/tools/scaling.py" --htrender "$htrender" --scene "$tmp/scene.json" --methods mis --sweeps spp \
@@ -43,8 +43,11 @@ for f in ("bench/results.json", "bench/results.csv", "bench/results.md", "scalin
     check((tmp / f).is_file() and (tmp / f).stat().st_size > 0, f"{f} exists")
 res = json.loads((tmp / "bench/results.json").read_text())
 rows = res["results"]
-check(len(rows) == 4, f"4 result rows, got {len(rows)}")
-check({(r["method"], r["spp"]) for r in rows} == {(m, s) for m in ("mis", "ht-vis") for s in (1, 4)}, "rows")
+check(len(rows) == 6, f"6 result rows, got {len(rows)}")
+check({(r["method"], r["spp"]) for r in rows} == {(m, s) for m in ("mis", "ht-vis", "ht-frontier") for s in (1, 4)},
+      "rows")
+check(all(r["samples_per_pixel"] == r["spp"] for r in rows if r["method"] == "ht-frontier"),
+      "ht-frontier draws exactly spp directions per pixel")
 for r in rows:
     for k in ("rmse", "relmse", "seconds"):
         check(math.isfinite(r[k]) and r[k] >= 0, f"{r['method']} {r['spp']} spp: {k} = {r[k]} finite")
@@ -58,7 +61,8 @@ check(math.isfinite(ref["residual_rmse"]) and ref["residual_rmse"] < mis[4], "re
 sc = json.loads((tmp / "scaling/scaling.json").read_text())["results"]
 check(len(sc) == 2 and all(r["seconds"] >= 0 and r["environment_trees"] >= 0 for r in sc), "scaling rows")
 md = (tmp / "report/README.md").read_text()
-for s in ("## scene", "slide 52", "Stress scenes", "## Scaling", "ht-vis"):
+for s in ("## scene", "slide 52", "Stress scenes", "## Scaling", "ht-vis", "Efficiency against `mis` at 4 spp",
+          "`ht-frontier` against `mis`"):
     check(s in md, f"report mentions {s!r}")
 check(sum(f.stat().st_size for f in (tmp / "report").iterdir()) < 2_000_000, "report is small")
 check(not list((tmp / "report").glob("*.exr")), "no EXRs in the report")

@@ -3,7 +3,7 @@
 #   1. tools/bench.py on data/scenes/spheres.json: every method at 4/16/64/256
 #      spp on the cpu, and on the gpu (lavapipe here) every method the GPU path
 #      has, at $GPU_SPP;
-#   2. the variance floor: oracle against ht-vis, ht and mis at 16 spp, side by
+#   2. the variance floor: oracle against ht-frontier, ht-vis, ht and mis at 16 spp, side by
 #      side in one run (oracle is slow: 16 spp only);
 #   3. tools/bench.py on every data/scenes/stress/*.json at one spp (the report
 #      carries each method's relMSE to equal time);
@@ -38,7 +38,7 @@ STRESS_WIDTH=${STRESS_WIDTH:-80}
 STRESS_HEIGHT=${STRESS_HEIGHT:-40}
 STRESS_SPP=${STRESS_SPP:-16}
 STRESS_REF_SPP=${STRESS_REF_SPP:-1024}
-SCALING_METHODS=${SCALING_METHODS:-mis,ht-vis}
+SCALING_METHODS=${SCALING_METHODS:-mis,ht-vis,ht-frontier}
 
 start=$(date +%s)
 stamp() { echo "make-report: $1 ($(( $(date +%s) - start )) s)" >&2; }
@@ -58,7 +58,7 @@ $PY tools/bench.py --htrender "$H" --scene data/scenes/spheres.json --device "$D
   --ref-spp "$REF_SPP" --max-seconds "$MAX_SECONDS" --out "$OUT/bench"
 
 stamp "variance floor: oracle at 16 spp, ${FLOOR_WIDTH}x${FLOOR_HEIGHT}"
-$PY tools/bench.py --htrender "$H" --scene data/scenes/spheres.json --device cpu --methods ht-vis,ht,mis \
+$PY tools/bench.py --htrender "$H" --scene data/scenes/spheres.json --device cpu --methods ht-frontier,ht-vis,ht,mis \
   --oracle --oracle-spp 16 --spp 16 --runs 1 --width "$FLOOR_WIDTH" --height "$FLOOR_HEIGHT" \
   --extra "--oracle-order $ORACLE_ORDER" \
   --ref-spp "$REF_SPP" --out "$OUT/floor"

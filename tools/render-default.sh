@@ -4,5 +4,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 tools/build.sh
 mkdir -p out
-build/htrender render --scene data/scenes/spheres.json --method mis --spp 64 \
+build/htrender render --scene data/scenes/spheres.json --method ht-frontier --spp 64 \
   --out out/spheres.exr --stats out/spheres.json "$@"

@@ -8,7 +8,8 @@ device), relMSE against spp, efficiency 1 / (relMSE x time) as bars; the
 talk's timing table (slide 52) next to ours with biased / unbiased ratios and
 the cost per sample; crops of every method at equal spp and at (about) equal
 time with per-pixel relative-error heat maps; wall and GPU times of the
-devices side by side. For the stress scenes, every method's relMSE at equal
+devices side by side. Every method's efficiency against mis at 16 spp, a
+column per scene (spheres and the stress scenes). For the stress scenes, every method's relMSE at equal
 time with the failing methods marked, and the fireflies (counted by bench.py,
 see bench.fireflies). For the scaling sweeps, time against spp, Nside and
 image size, and the environment stage split into load / resample / trees.
@@ -224,34 +225,74 @@ def devices_table(rows):
     return "\n".join(lines) if len(lines) > 2 else None
 
 
+PRODUCT_METHODS = ("ht-frontier", "ht-vis")  # the fixed-count product method and the seed's
+
+
 def findings(rows):
-    """The headline sentence: efficiency of ht-vis against mis, variance of ht-vis against oracle at 16 spp."""
+    """The headline sentences: efficiency of the product methods against mis, their variance against oracle."""
     cpu = [r for r in rows if r.get("device", "cpu") == "cpu"]
     get = lambda m, s: next((r for r in cpu if r["method"] == m and r["spp"] == s), None)  # noqa: E731
     out = []
-    effs = []
-    for s in sorted({r["spp"] for r in cpu}):
-        a, b = get("ht-vis", s), get("mis", s)
-        if a and b and math.isfinite(efficiency(a)) and math.isfinite(efficiency(b)):
-            effs.append((s, efficiency(a) / efficiency(b), b["relmse"] / a["relmse"], a["seconds"] / b["seconds"]))
-    if effs:
-        geo = math.exp(statistics.mean(math.log(e[1]) for e in effs))
-        out.append("Efficiency (1 / (relMSE x time)) of `ht-vis` against `mis`: " +
-                   ", ".join(f"{e[1]:.2f}x at {e[0]} spp (relMSE {1 / e[2]:.2f}x and time {e[3]:.2f}x mis's)"
-                             for e in effs) + f"; geometric mean {geo:.2f}x.")
-    a, o = get("ht-vis", 16), get("oracle", 16)
-    if a and o:
-        lum = ""
-        if a.get("luminance_relmse") and o.get("luminance_relmse"):
-            lum = f", {a['luminance_relmse'] / o['luminance_relmse']:.1f}x in luminance"
-        out.append(f"At 16 spp `ht-vis` has {a['relmse'] / o['relmse']:.2f}x the relMSE of `oracle`{lum}, the "
-                   f"brute-force product env x BRDF x visibility (relMSE {a['relmse']:.2e} against "
-                   f"{o['relmse']:.2e}; render time {a['seconds']:.2f} s against {o['seconds']:.2f} s).")
+    for m in PRODUCT_METHODS:
+        effs = []
+        for s in sorted({r["spp"] for r in cpu}):
+            a, b = get(m, s), get("mis", s)
+            if a and b and math.isfinite(efficiency(a)) and math.isfinite(efficiency(b)):
+                effs.append((s, efficiency(a) / efficiency(b), b["relmse"] / a["relmse"], a["seconds"] / b["seconds"]))
+        if effs:
+            geo = math.exp(statistics.mean(math.log(e[1]) for e in effs))
+            out.append(f"Efficiency (1 / (relMSE x time)) of `{m}` against `mis`: " +
+                       ", ".join(f"{e[1]:.2f}x at {e[0]} spp (relMSE {1 / e[2]:.2f}x and time {e[3]:.2f}x mis's)"
+                                 for e in effs) + f"; geometric mean {geo:.2f}x.")
+    for m in PRODUCT_METHODS:
+        a, o = get(m, 16), get("oracle", 16)
+        if a and o:
+            lum = ""
+            if a.get("luminance_relmse") and o.get("luminance_relmse"):
+                lum = f", {a['luminance_relmse'] / o['luminance_relmse']:.1f}x in luminance"
+            out.append(f"At 16 spp `{m}` has {a['relmse'] / o['relmse']:.2f}x the relMSE of `oracle`{lum}, the "
+                       f"brute-force product env x BRDF x visibility (relMSE {a['relmse']:.2e} against "
+                       f"{o['relmse']:.2e}; render time {a['seconds']:.2f} s against {o['seconds']:.2f} s).")
     return " ".join(out)
 
 
+def efficiency_table(rows, spp=16):
+    """Every method's efficiency against mis's at one spp (16, or the largest below it), a column per scene."""
+    spps = {r["spp"] for r in rows if r.get("device", "cpu") == "cpu"}
+    if spp not in spps:
+        spp = max((s for s in spps if s < spp), default=min(spps, default=spp))
+    cpu = [r for r in rows if r.get("device", "cpu") == "cpu" and r["spp"] == spp]
+    scenes = list(dict.fromkeys(r["scene"] for r in cpu))
+    methods = list(dict.fromkeys(r["method"] for r in cpu if r["method"] != "oracle"))
+    cell = {(r["scene"], r["method"]): r for r in cpu}
+    if not scenes or not any((s, "mis") in cell for s in scenes):
+        return []
+    md = [f"## Efficiency against `mis` at {spp} spp", "",
+          f"1 / (relMSE x time) of each method divided by `mis`'s, both at {spp} spp on the cpu, measured side by "
+          "side in one run per scene: above 1 is better than `mis` at equal time. **bold**: the best unbiased "
+          "method of the scene.", "",
+          "| method | " + " | ".join(scenes) + " |", "|---|" + "---|" * len(scenes)]
+    ratio = {}
+    for s in scenes:
+        base = cell.get((s, "mis"))
+        for m in methods:
+            r = cell.get((s, m))
+            if base and r and math.isfinite(efficiency(r)) and math.isfinite(efficiency(base)):
+                ratio[s, m] = efficiency(r) / efficiency(base)
+    best = {s: max((v for (sc, m), v in ratio.items() if sc == s and "biased" not in m), default=None)
+            for s in scenes}
+    for m in methods:
+        cells = []
+        for s in scenes:
+            v = ratio.get((s, m))
+            cells.append("-" if v is None else f"**{v:.2f}**" if v == best[s] else f"{v:.2f}")
+        md.append(f"| {m} | " + " | ".join(cells) + " |")
+    md.append("")
+    return md
+
+
 def floor_section(data):
-    """ht-vis (and the others of the run) against oracle, the brute-force product, at equal spp."""
+    """The product methods (and the others of the run) against oracle, the brute-force product, at equal spp."""
     rows = [r for r in data["results"] if r.get("device", "cpu") == "cpu"]
     md = ["## Variance floor: against the brute-force product", ""]
     for scene in dict.fromkeys(r["scene"] for r in rows):
@@ -279,11 +320,13 @@ def floor_section(data):
                     cells += [f"{r['luminance_relmse']:.2e}", f"{r['luminance_relmse'] / o['luminance_relmse']:.1f}"]
                 cells += [f"{r['seconds']:.2f}", f"{r['seconds'] / o['seconds']:.3f}"]
                 md.append("| " + " | ".join(cells) + " |")
-            a = next((r for r in others if r["method"] == "ht-vis"), None)
-            if a:
+            for m in PRODUCT_METHODS:
+                a = next((r for r in others if r["method"] == m), None)
+                if not a:
+                    continue
                 lum_text = (f"; in luminance {a['luminance_relmse'] / o['luminance_relmse']:.1f}x "
                             f"({a['luminance_relmse']:.2e} against {o['luminance_relmse']:.2e})" if lum else "")
-                md += ["", f"**At {spp} spp `ht-vis` has {a['relmse'] / o['relmse']:.2f}x the relMSE of `oracle` "
+                md += ["", f"**At {spp} spp `{m}` has {a['relmse'] / o['relmse']:.2f}x the relMSE of `oracle` "
                        f"({a['relmse']:.2e} against {o['relmse']:.2e}){lum_text}, in {a['seconds'] / o['seconds']:.3f}x "
                        f"its render time.**"]
             md.append("")
@@ -507,10 +550,12 @@ def main():
         scene = Path(scene_path).stem
         srows = [r for r in rows if r["scene"] == scene]
         md += scene_section(scene, info, srows, bench_dir, args.htrender, tmp, outdir, bench.get("skipped", []))
+    stress = json.loads((Path(args.stress) / "results.json").read_text()) if args.stress else None
+    md += efficiency_table(rows + (stress["results"] if stress else []))
     if args.floor:
         md += floor_section(json.loads((Path(args.floor) / "results.json").read_text()))
-    if args.stress:
-        md += stress_section(json.loads((Path(args.stress) / "results.json").read_text()), outdir)
+    if stress:
+        md += stress_section(stress, outdir)
     if args.scaling:
         md += scaling_section(json.loads((Path(args.scaling) / "scaling.json").read_text()), outdir)
     write_atomic(outdir / "README.md", "\n".join(md) + "\n")
