@@ -79,6 +79,10 @@ std::unique_ptr<HtGeometry> buildGeometry(int order) {
   // exact radius, with 5% to spare (checked against every level in tests).
   for (int l = kExactRadiusLevels + 1; l < int(g->levelRadius.size()); ++l)
     g->levelRadius[l] = float(g->levelRadius[kExactRadiusLevels] * std::ldexp(1.05, kExactRadiusLevels - l));
+  for (size_t l = 0; l < g->levelRadius.size(); ++l) {
+    g->levelCosRadius[l] = std::cos(g->levelRadius[l]);
+    g->levelSinRadius[l] = std::sin(g->levelRadius[l]);
+  }
   return g;
 }
 
@@ -133,10 +137,13 @@ std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, cons
 }
 
 HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
+    : HtPoint(sc, sp, opt, htGeometry(sc.environment.order)) {}
+
+HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt, const HtGeometry& g)
     : scene(sc),
       env(sc.environment),
       options(opt),
-      geometry(htGeometry(sc.environment.order)),
+      geometry(g),
       material(*sp.material),
       frame(glm::normalize(toFloat(sc.environment.toHealpixFrame(sp.normal)))) {
   n = frame.n;

@@ -54,6 +54,7 @@ struct HtGeometry {
   std::vector<glm::vec3> centers;
   std::vector<glm::vec2> cosSinRadius;
   std::array<float, 32> levelRadius{};
+  std::array<float, 32> levelCosRadius{}, levelSinRadius{};
 };
 const HtGeometry& htGeometry(int order);
 
@@ -103,6 +104,8 @@ struct HtCounters {
 class HtPoint {
  public:
   HtPoint(const Scene& scene, const ShadingPoint& sp, const HtOptions& options);
+  // The same with the geometry already at hand (htGeometry of the map's order).
+  HtPoint(const Scene& scene, const ShadingPoint& sp, const HtOptions& options, const HtGeometry& geometry);
 
   // Sets the expected sample count n: s = n / C_est.
   void setBudget(double n);

@@ -68,10 +68,18 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
   std::sort(table.nodes.begin(), table.nodes.end(),
             [](const FrontierNode& a, const FrontierNode& b) { return a.firstLeaf < b.firstLeaf; });
   double total = 0.0, coarse = 0.0;
-  for (const FrontierNode& nd : table.nodes) {
+  table.cum.resize(table.nodes.size() + 1);
+  table.faceStart.fill(uint32_t(table.nodes.size()));
+  for (size_t k = table.nodes.size(); k-- > 0;)
+    table.faceStart[size_t(table.nodes[k].node >> (2 * table.nodes[k].level))] = uint32_t(k);
+  for (int f = 11; f >= 0; --f) table.faceStart[size_t(f)] = std::min(table.faceStart[size_t(f)], table.faceStart[size_t(f + 1)]);
+  for (size_t k = 0; k < table.nodes.size(); ++k) {
+    const FrontierNode& nd = table.nodes[k];
+    table.cum[k] = total;
     total += nd.mass;
     if (nd.brdfBound > coarseRatio * nd.brdfCentre) coarse += nd.mass;
   }
+  table.cum.back() = total;
   table.coarseShare = total > 0.0 ? coarse / total : 0.0;
 }
 
@@ -80,6 +88,70 @@ float cosClosest(const glm::vec3& a, const glm::vec3& b, float cosR, float sinR)
   float c = std::clamp(glm::dot(a, b), -1.0f, 1.0f);
   if (c >= cosR) return 1.0f;
   return c * cosR + std::sqrt(1.0f - c * c) * sinR;
+}
+
+// A spherical cap of blocked directions seen from a shading point (HEALPix
+// frame), by the cosine and sine of its half-angle: the caps of HT's
+// visibility factor, shrunk by the same milliradian, without per-level tables.
+struct LightCap {
+  glm::vec3 axis;
+  float cosA, sinA;
+};
+
+void lightCaps(const Scene& scene, const ShadingPoint& sp, std::vector<LightCap>& caps) {
+  constexpr float kMargin = 1e-3f;
+  const float cm = std::cos(kMargin), sm = std::sin(kMargin);
+  const Environment& env = scene.environment;
+  const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
+  caps.clear();
+  for (const Sphere& s : scene.spheres) {
+    const glm::vec3 d = s.center - origin;
+    const float dist = glm::length(d);
+    if (!(dist > 0.0f)) continue;
+    const float s0 = std::min(1.0f, s.radius / dist), c0 = std::sqrt(1.0f - s0 * s0);
+    const float sinA = s0 * cm - c0 * sm;  // sin(asin(s0) - margin)
+    if (sinA > 0.0f) caps.push_back({glm::normalize(glm::vec3(env.toHealpixFrame(d / dist))), c0 * cm + s0 * sm, sinA});
+  }
+  for (const Plane& p : scene.planes) {
+    const glm::vec3 below = glm::dot(origin - p.point, p.normal) >= 0.0f ? -p.normal : p.normal;
+    caps.push_back({glm::normalize(glm::vec3(env.toHealpixFrame(below))), sm, cm});
+  }
+}
+
+// 0: a node of `level` at `centre` lies inside a cap (blocked), 1: outside
+// every cap, 2: partly covered. Inside: angle(centre, axis) <= A - R with
+// A > R; outside: >= A + R (A the cap's half-angle, R a radius bounding the
+// level's nodes), in cosines by the angle-addition formulas; the caps'
+// margin covers their rounding.
+int visibilityClass(const std::vector<LightCap>& caps, const HtGeometry& g, const glm::vec3& centre, int level) {
+  const float cR = g.levelCosRadius[size_t(level)], sR = g.levelSinRadius[size_t(level)];
+  bool partial = false;
+  for (const LightCap& c : caps) {
+    const float d = glm::dot(centre, c.axis);
+    if (c.sinA * cR - c.cosA * sR > 0.0f && d >= c.cosA * cR + c.sinA * sR) return 0;
+    partial |= d > c.cosA * cR - c.sinA * sR;
+  }
+  return partial ? 2 : 1;
+}
+
+// Lowers vis[k] to 0 for nodes inside one cap and to `partial` for nodes it
+// covers in part. A node lies inside when angle(centre, axis) <= A - R with
+// A > R and outside when it is >= A + R (A the cap's, R the node level's
+// radius), in cosines by the angle-addition formulas; the cap's 1e-3 margin
+// covers their rounding. Branch-free, so that it vectorises.
+void capVisibility(const float* __restrict x, const float* __restrict y, const float* __restrict z,
+                   const float* __restrict cosR, const float* __restrict sinR, uint32_t count, float ax, float ay,
+                   float az, float cA, float sA, float partial, float* __restrict vis) {
+  for (uint32_t k = 0; k < count; ++k) {
+    const float d = x[k] * ax + y[k] * ay + z[k] * az;
+    const float cosInside = cA * cosR[k] + sA * sinR[k];
+    const float sinAMinusR = sA * cosR[k] - cA * sinR[k];
+    const float cosOutside = cA * cosR[k] - sA * sinR[k];
+    float v = vis[k];
+    v = d > cosOutside ? std::min(v, partial) : v;
+    v = sinAMinusR > 0.0f && d >= cosInside ? 0.0f : v;
+    vis[k] = v;
+  }
 }
 
 struct SharedKey {
@@ -125,8 +197,16 @@ const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOpti
     c = std::max(centre, options.brdfFloor * bound);
     return true;
   };
-  refine(point.env, g.centers, options.sharedRefinements, options.tolerance, options.coarseRatio, factor, *entry);
-  return *entry;
+  FrontierTable& t = *entry;
+  refine(point.env, g.centers, options.sharedRefinements, options.tolerance, options.coarseRatio, factor, t);
+  for (const FrontierNode& nd : t.nodes) {
+    t.x.push_back(nd.centre.x);
+    t.y.push_back(nd.centre.y);
+    t.z.push_back(nd.centre.z);
+    t.cosRadius.push_back(std::cos(g.levelRadius[size_t(nd.level)]));
+    t.sinRadius.push_back(std::sin(g.levelRadius[size_t(nd.level)]));
+  }
+  return t;
 }
 
 }  // namespace
@@ -135,44 +215,57 @@ int frontierRefinements(const FrontierOptions& options, int n) {
   return options.refinements >= 0 ? options.refinements : std::min(16 + std::max(n, 0), 256);
 }
 
-void Frontier::build(const HtPoint& point, const FrontierOptions& options, int n, bool flat) {
+void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const FrontierOptions& options, int n) {
   point_ = &point;
   order_ = point.env.order;
+  thread_local std::vector<LightCap> allCaps;
+  allCaps.clear();
+  if (options.visibility) lightCaps(point.scene, sp, allCaps);
   const bool lambert = point.material.type == MaterialType::Lambert && !point.table;
-  if (flat && lambert && options.sharedRefinements >= 0 && point.woLocal.z > 0.0f) {
+  if (sp.flat && lambert && options.sharedRefinements >= 0 && point.woLocal.z > 0.0f) {
     table_ = &sharedLambertTable(point, options);
     // The point's own caps, each with the faces it can reach. The cap of
     // the surface's own plane is left out: the table has no mass below it
     // but for nodes the horizon cuts, where cos+ is small.
     struct FaceCaps {
-      const Cap* cap;
+      const LightCap* cap;
       uint32_t faces;
     };
     thread_local std::vector<FaceCaps> caps;
     caps.clear();
-    if (options.visibility)
-      for (const Cap& c : point.caps) {
-        if (glm::dot(c.axis, point.n) < -0.9999f) continue;
-        uint32_t faces = 0;
-        for (uint32_t f = 0; f < 12; ++f)
-          if (glm::dot(point.geometry.centers[f], c.axis) > c.cosOutside[0]) faces |= 1u << f;
-        if (faces) caps.push_back({&c, faces});
-      }
-    mass_.resize(table_->nodes.size());
-    for (size_t k = 0; k < table_->nodes.size(); ++k) {
-      const FrontierNode& nd = table_->nodes[k];
-      const uint32_t face = 1u << uint32_t(nd.node >> (2 * nd.level));
-      float vis = 1.0f;
+    const HtGeometry& g = point.geometry;
+    for (const LightCap& c : allCaps) {
+      if (glm::dot(c.axis, point.n) < -0.9999f) continue;
+      const float cosOutside = c.cosA * g.levelCosRadius[0] - c.sinA * g.levelSinRadius[0];
+      uint32_t faces = 0;
+      for (uint32_t f = 0; f < 12; ++f)
+        if (glm::dot(g.centers[f], c.axis) > cosOutside) faces |= 1u << f;
+      if (faces) caps.push_back({&c, faces});
+    }
+    touched_ = 0;
+    for (const FaceCaps& fc : caps) touched_ |= fc.faces;
+    const FrontierTable& t = *table_;
+    mass_.resize(t.nodes.size());
+    cum_.resize(t.nodes.size());
+    vis_.resize(t.nodes.size());
+    const float partial = options.partialVisibility;
+    for (uint32_t f = 0; f < 12; ++f) {
+      if (!(touched_ & (1u << f))) continue;
+      const uint32_t first = t.faceStart[f], end = t.faceStart[f + 1];
+      std::fill(vis_.begin() + first, vis_.begin() + end, 1.0f);
       for (const FaceCaps& fc : caps) {
-        if (!(fc.faces & face)) continue;
-        const float d = glm::dot(nd.centre, fc.cap->axis);
-        if (d >= fc.cap->cosInside[size_t(nd.level)]) {
-          vis = 0.0f;
-          break;
-        }
-        if (d > fc.cap->cosOutside[size_t(nd.level)]) vis = options.partialVisibility;
+        if (!(fc.faces & (1u << f))) continue;
+        const float ax = fc.cap->axis.x, ay = fc.cap->axis.y, az = fc.cap->axis.z;
+        const float cA = fc.cap->cosA, sA = fc.cap->sinA;
+        capVisibility(t.x.data() + first, t.y.data() + first, t.z.data() + first, t.cosRadius.data() + first,
+                      t.sinRadius.data() + first, end - first, ax, ay, az, cA, sA, partial, vis_.data() + first);
       }
-      mass_[k] = nd.mass * double(vis);
+      double acc = 0.0;
+      for (uint32_t k = first; k < end; ++k) {
+        mass_[k] = t.nodes[k].mass * double(vis_[k]);
+        cum_[k] = acc;
+        acc += mass_[k];
+      }
     }
   } else {
     table_ = &own_;
@@ -181,7 +274,7 @@ void Frontier::build(const HtPoint& point, const FrontierOptions& options, int n
       if (!(bound > 0.0f)) return false;
       float vis = 1.0f;
       if (options.visibility) {
-        const int cls = point.visibilityClass(point.geometry.centers[i], level);
+        const int cls = visibilityClass(allCaps, point.geometry, point.geometry.centers[i], level);
         if (cls == 0) return false;
         if (cls == 2) vis = options.partialVisibility;
       }
@@ -190,17 +283,27 @@ void Frontier::build(const HtPoint& point, const FrontierOptions& options, int n
       return true;
     };
     refine(point.env, point.geometry.centers, frontierRefinements(options, n), options.tolerance, options.coarseRatio, factor, own_);
-    mass_.resize(own_.nodes.size());
-    for (size_t k = 0; k < own_.nodes.size(); ++k) mass_[k] = own_.nodes[k].mass;
+    touched_ = 0;
   }
-  cdf_.resize(mass_.size());
+  const FrontierTable& t = *table_;
   total_ = 0.0;
-  for (size_t k = 0; k < mass_.size(); ++k) {
-    cdf_[k] = total_;
-    total_ += mass_[k];
+  for (uint32_t f = 0; f < 12; ++f) {
+    faceCum_[f] = total_;
+    const uint32_t first = t.faceStart[f], end = t.faceStart[f + 1];
+    if (touched_ & (1u << f))
+      total_ += end > first ? cum_[end - 1] + mass_[end - 1] : 0.0;
+    else
+      total_ += t.cum[end] - t.cum[first];
   }
-  if (total_ > 0.0)
-    for (double& c : cdf_) c /= total_;
+  faceCum_[12] = total_;
+}
+
+double Frontier::mass(size_t k) const {
+  return touched_ & (1u << faceOf(table_->nodes[k])) ? mass_[k] : table_->nodes[k].mass;
+}
+
+double Frontier::cumInFace(size_t k, int face) const {
+  return touched_ & (1u << face) ? cum_[k] : table_->cum[k] - table_->cum[table_->faceStart[size_t(face)]];
 }
 
 size_t Frontier::nodeOfLeaf(uint64_t leaf) const {
@@ -218,7 +321,7 @@ size_t Frontier::nodeOfLeaf(uint64_t leaf) const {
 double Frontier::density(size_t k, uint64_t leaf) const {
   const MaxAvgTree& tree = point_->env.tree;
   const int top = table_->nodes[k].level;
-  double p = mass_[k] / total_;
+  double p = mass(k) / total_;
   for (int level = order_; level > top; --level) {
     const uint64_t first = MaxAvgTree::levelOffset(level) + (leaf & ~uint64_t(3));
     const double sum = double(tree.avgv[first]) + double(tree.avgv[first + 1]) + double(tree.avgv[first + 2]) +
@@ -231,19 +334,30 @@ double Frontier::density(size_t k, uint64_t leaf) const {
 
 double Frontier::pdf(uint64_t leaf) const {
   const size_t k = nodeOfLeaf(leaf);
-  return k < table_->nodes.size() && mass_[k] > 0.0 ? density(k, leaf) : 0.0;
+  return k < table_->nodes.size() && mass(k) > 0.0 ? density(k, leaf) : 0.0;
 }
 
 uint64_t Frontier::sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, double& pdf) const {
   const MaxAvgTree& tree = point_->env.tree;
-  // The last node whose CDF interval starts at or before x and has mass.
-  size_t k = size_t(std::upper_bound(cdf_.begin(), cdf_.end(), x) - cdf_.begin());
-  k = k > 0 ? k - 1 : 0;
-  while (k > 0 && !(mass_[k] > 0.0)) --k;
-  while (!(mass_[k] > 0.0)) ++k;
-  const FrontierNode& nd = table_->nodes[k];
-  const double share = mass_[k] / total_;
-  double t = std::clamp((x - cdf_[k]) / share, 0.0, 1.0);
+  const FrontierTable& tb = *table_;
+  // The face, then the node, whose interval of the mass CDF holds x.
+  const double target = x * total_;
+  int face = 11;
+  while (face > 0 && !(faceCum_[size_t(face)] <= target && faceCum_[size_t(face) + 1] > faceCum_[size_t(face)])) --face;
+  while (!(faceCum_[size_t(face) + 1] > faceCum_[size_t(face)])) ++face;
+  const double r = target - faceCum_[size_t(face)];
+  const uint32_t first = tb.faceStart[size_t(face)], end = tb.faceStart[size_t(face) + 1];
+  size_t lo = first, hi = end;  // the last k with cumInFace(k) <= r
+  while (hi - lo > 1) {
+    const size_t mid = (lo + hi) / 2;
+    (cumInFace(mid, face) <= r ? lo : hi) = mid;
+  }
+  size_t k = lo;
+  while (k > first && !(mass(k) > 0.0)) --k;
+  while (!(mass(k) > 0.0)) ++k;
+  const FrontierNode& nd = tb.nodes[k];
+  const double share = mass(k) / total_;
+  double t = std::clamp((r - cumInFace(k, face)) / mass(k), 0.0, 1.0);
   double p = share;
   uint64_t node = nd.node;
   for (int level = nd.level + 1; level <= order_; ++level) {
@@ -277,12 +391,14 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
                              Rng& rng, EstimateCounters& counters) {
   const Environment& env = scene.environment;
   if (!env.hasLight() || n <= 0) return glm::vec3(0.0f);
+  // The caps are the frontier's own; the point brings bounds and geometry.
   HtOptions htOptions;
-  htOptions.visibility = options.visibility;
   htOptions.budgetRefinements = -1;
-  const HtPoint point(scene, sp, htOptions);
+  thread_local const HtGeometry* geometry = nullptr;
+  if (!geometry || geometry->order != env.order) geometry = &htGeometry(env.order);
+  const HtPoint point(scene, sp, htOptions, *geometry);
   thread_local Frontier frontier;
-  frontier.build(point, options, n, sp.flat);
+  frontier.build(point, sp, options, n);
   if (!frontier.shared()) counters.htNodes += uint64_t(12 + 4 * frontier.splits());
   if (!(frontier.totalMass() > 0.0)) return glm::vec3(0.0f);
   const Shading sh(scene, sp, counters);

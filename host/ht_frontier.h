@@ -31,6 +31,7 @@
 // The estimate is sum f(w) / (n_t p_t(w) + n_b p_b(w)) over all n directions.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -65,9 +66,15 @@ struct FrontierNode {
   float brdfCentre;    // BRDF x cos at the centre
 };
 
-// Nodes sorted along the nested index, with their masses.
+// Nodes sorted along the nested index (so each face's nodes are one run),
+// with their masses.
 struct FrontierTable {
   std::vector<FrontierNode> nodes;
+  std::vector<double> cum;              // cum[k]: mass of the nodes before k (nodes.size() + 1 entries)
+  std::array<uint32_t, 13> faceStart{};  // the first node of each face, and the end
+  // For the caps test of shared tables, per node: its centre and the cosine
+  // and sine of a radius that bounds every node of its level.
+  std::vector<float> x, y, z, cosRadius, sinRadius;
   double coarseShare = 0.0;  // share of the mass in nodes coarse for the BRDF
   int splits = 0;
 };
@@ -77,7 +84,8 @@ class Frontier {
  public:
   // Prepares the frontier at `point` for n samples, reusing this object's
   // storage and, on a flat surface, the calling thread's shared tables.
-  void build(const HtPoint& point, const FrontierOptions& options, int n, bool flat);
+  // `point` is `sp` seen by HT (its visibility caps are not used).
+  void build(const HtPoint& point, const ShadingPoint& sp, const FrontierOptions& options, int n);
 
   const FrontierTable& table() const { return *table_; }
   double totalMass() const { return total_; }
@@ -97,9 +105,19 @@ class Frontier {
   int order_ = 0;
   FrontierTable own_;
   const FrontierTable* table_ = &own_;
-  std::vector<double> mass_, cdf_;  // this point's masses and their normalised prefix sums
+  // This point's masses differ from the table's on the faces in `touched_`
+  // (a shared table under the point's caps); there `mass_` holds them and
+  // `cum_` their prefix sums from the face's first node.
+  uint32_t touched_ = 0;
+  std::vector<double> mass_, cum_;
+  std::vector<float> vis_;
+  std::array<double, 13> faceCum_{};  // mass of the faces before each face
   double total_ = 0.0;
 
+  static int faceOf(const FrontierNode& nd) { return int(nd.node >> (2 * nd.level)); }
+  double mass(size_t k) const;
+  // Mass of the nodes of k's face before k.
+  double cumInFace(size_t k, int face) const;
   size_t nodeOfLeaf(uint64_t leaf) const;
   double density(size_t k, uint64_t leaf) const;
 };

@@ -56,10 +56,9 @@ struct PreparedPoint {
 void prepare(const ShadingSetup& s, const FrontierOptions& options, int n, PreparedPoint& p) {
   p.sp = s.sp;
   p.sp.material = &s.scene.materials[0];
-  p.htOptions.visibility = options.visibility;
   p.htOptions.budgetRefinements = -1;
   p.point = std::make_unique<HtPoint>(s.scene, p.sp, p.htOptions);
-  p.frontier.build(*p.point, options, n, p.sp.flat);
+  p.frontier.build(*p.point, p.sp, options, n);
 }
 
 }  // namespace
