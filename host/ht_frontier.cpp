@@ -182,7 +182,7 @@ const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOpti
   const SharedKey key{point.env.tree.id, point.n, options.sharedRefinements, options.brdfFloor, options.coarseRatio,
                       options.tolerance};
   // Tables of an earlier environment are never used again.
-  if (cachedTree != key.tree || cache.size() >= 256) cache.clear();
+  if (cachedTree != key.tree || cache.size() >= kFrontierSharedTables) cache.clear();
   cachedTree = key.tree;
   std::unique_ptr<FrontierTable>& entry = cache[key];
   if (entry) return *entry;

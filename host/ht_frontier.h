@@ -122,6 +122,11 @@ class Frontier {
   double density(size_t k, uint64_t leaf) const;
 };
 
+// Shared tables one thread keeps at most, and the bytes of one at the default
+// size (nodes, prefix sums and the caps test's arrays).
+constexpr uint64_t kFrontierSharedTables = 64;
+constexpr uint64_t kFrontierSharedTableBytes = (3 * 192 + 12) * (sizeof(FrontierNode) + 8 + 20);
+
 // The splits a per-point frontier makes for n samples.
 int frontierRefinements(const FrontierOptions& options, int n);
 // The n_b of n directions that come from BRDF sampling.

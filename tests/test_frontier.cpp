@@ -179,3 +179,31 @@ TEST(Frontier, SharingNeverChangesTheImage) {
   EXPECT_EQ(first.image.pixels, oneThread.image.pixels);
   EXPECT_EQ(first.counters.directions, uint64_t(rs.spp) * first.shadedPixels);
 }
+
+// Where users go: 256 and 1024 directions per estimate, on every setup
+// (z-test against the brute force, Sidak-corrected), with exact counts.
+TEST(FrontierSlow, UnbiasedAtHighSpp) {
+  const std::vector<ShadingSetup> all = setups();
+  const std::vector<int> counts = {256, 1024};
+  const int tests = int(all.size() * counts.size() * 3);
+  const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
+  for (const ShadingSetup& s : all) {
+    const glm::dvec3 ref = bruteForceIntegral(s, 12);
+    const glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, 6));
+    for (int n : counts) {
+      MeanAndError e = repeatedEstimates(s, Method::HtFrontier, 300, n, 900 + n);
+      for (int c = 0; c < 3; ++c) {
+        const double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
+        ASSERT_GT(se, 0.0) << s.name;
+        EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
+            << s.name << " n " << n << " channel " << c << ": mean " << e.mean[c] << " reference " << ref[c];
+      }
+      ShadingPoint sp = s.sp;
+      sp.material = &s.scene.materials[0];
+      Rng rng(3, 1);
+      EstimateCounters counters;
+      estimateDirect(s.scene, sp, Method::HtFrontier, n, rng, counters);
+      EXPECT_EQ(counters.directions, uint64_t(n)) << s.name;
+    }
+  }
+}
