@@ -306,29 +306,39 @@ uint64_t HtPoint::lowestCandidate(uint32_t pixelSeed, int level, uint64_t node) 
 void HtPoint::estimateBudget() {
   // Refine the nodes with the largest bound mass, then sum the estimates of
   // the frontier: C_est ~ integral of h. A wrong C_est changes the expected
-  // sample count, never the expectation of the estimate.
+  // sample count, never the expectation of the estimate. The largest mass
+  // comes from a heap; ties go to the node inserted first, and the sum runs
+  // in insertion order, as the GPU's linear scan does.
   struct Node {
     int level;
     uint64_t node;
-    double mass;
+    bool split;
   };
-  std::vector<Node> frontier;
+  thread_local std::vector<Node> nodes;
+  thread_local std::vector<std::pair<double, int64_t>> heap;  // (mass, -index)
+  nodes.clear();
+  heap.clear();
   auto push = [&](int l, uint64_t p) {
     double mass = double(bound(l, p)) * healpix::pixelSolidAngle(l);
-    if (mass > 0.0) frontier.push_back({l, p, mass});
+    if (!(mass > 0.0)) return;
+    heap.emplace_back(mass, -int64_t(nodes.size()));
+    std::push_heap(heap.begin(), heap.end());
+    nodes.push_back({l, p, false});
   };
   for (int f = 0; f < 12; ++f) push(0, uint64_t(f));
-  for (int k = 0; k < options.budgetRefinements && !frontier.empty(); ++k) {
-    auto it = std::max_element(frontier.begin(), frontier.end(), [](const Node& a, const Node& b) {
-      return a.mass < b.mass;
-    });
-    if (it->level >= env.order) break;
-    Node top = *it;
-    frontier.erase(it);
-    for (int j = 0; j < 4; ++j) push(top.level + 1, 4 * top.node + j);
+  for (int k = 0; k < options.budgetRefinements && !heap.empty(); ++k) {
+    Node& top = nodes[size_t(-heap.front().second)];
+    if (top.level >= env.order) break;
+    std::pop_heap(heap.begin(), heap.end());
+    heap.pop_back();
+    top.split = true;
+    const int level = top.level + 1;
+    const uint64_t first = 4 * top.node;
+    for (int j = 0; j < 4; ++j) push(level, first + uint64_t(j));
   }
   double c = 0.0;
-  for (const Node& nd : frontier) c += double(nodeEstimate(nd.level, nd.node)) * healpix::pixelSolidAngle(nd.level);
+  for (const Node& nd : nodes)
+    if (!nd.split) c += double(nodeEstimate(nd.level, nd.node)) * healpix::pixelSolidAngle(nd.level);
   cEst_ = c;
 }
 
