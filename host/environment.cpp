@@ -194,119 +194,146 @@ Environment environmentFromEquirect(const ImageRGB& image, int order, float yawD
   const int width = image.width, height = image.height;
   const int64_t n = int64_t(1) << order;
 
-  // Band boundaries in z, descending from 1 to -1, each band with its texel row.
+  // Band boundaries in z, descending from 1 to -1, each band with its texel
+  // row and the HEALPix ring (1..4n-1) whose centre is the nearest at or
+  // above its top (0 for the pole): its pieces lie in that ring and the next.
+  const int64_t rings = 4 * n - 1;
+  std::vector<double> ringZ(size_t(rings) + 1);
+  ringZ[0] = 1.0;
   std::vector<double> levels;
   for (int64_t m = 1; m < n; ++m) levels.push_back(1.0 - double(m * m) / double(3 * n * n));
   const size_t polar = levels.size();
+  for (size_t i = 0; i < polar; ++i) {
+    ringZ[i + 1] = levels[i];
+    ringZ[size_t(rings) - i] = -levels[i];
+  }
   for (size_t i = 0; i < polar; ++i) levels.push_back(-levels[i]);
-  for (int64_t m = 0; m <= 2 * n; ++m) levels.push_back((2.0 / 3.0) * double(n - m) / double(n));
+  for (int64_t m = 0; m <= 2 * n; ++m) {
+    levels.push_back((2.0 / 3.0) * double(n - m) / double(n));
+    ringZ[size_t(n + m)] = levels.back();
+  }
   for (int y = 1; y < height; ++y) levels.push_back(std::cos(kPiD * y / height));
   std::sort(levels.begin(), levels.end(), std::greater<double>());
   levels.push_back(-1.0);
   struct Band {
     double zTop, zBottom;
     int row;
+    int64_t ring;
   };
   std::vector<Band> bands;
   double zTop = 1.0;
   int row = 0;
+  int64_t ring = 0;
   for (double z : levels) {
     if (!(z < zTop)) continue;
     while (row + 1 < height && zTop <= std::cos(kPiD * (row + 1) / height)) ++row;
-    bands.push_back({zTop, z, row});
+    while (ring < rings && ringZ[size_t(ring) + 1] >= zTop) ++ring;
+    bands.push_back({zTop, z, row, ring});
     zTop = z;
   }
 
-  std::vector<glm::dvec3> energy(healpix::pixelCount(order), glm::dvec3(0.0));
+  env.radiance.assign(healpix::pixelCount(order), glm::vec3(0.0f));
   const double dphi = 2.0 * kPiD / width;
-  struct Piece {
-    uint64_t pixel;
-    glm::dvec3 energy;
-  };
-  // Bands are integrated in parallel a wave at a time (small enough to stay
-  // in cache) and their pieces added in a fixed order, so the result does
-  // not depend on the thread count.
-  constexpr size_t kWave = 32;
-  std::vector<std::vector<Piece>> pieces(kWave);
+  const double toRadiance = double(scale) / healpix::pixelSolidAngle(order);
   struct Scratch {
     // Over a row, in texel units t: first[x] = integral of L over [0, x],
     // second[x] = integral of that over [0, x].
     std::vector<glm::dvec3> first, second;
     std::vector<Edge> edges, up, down;
     int row = -1;
+    // The energy of a group's pixels, by ring and position in the ring,
+    // and each one's nested index.
+    std::vector<glm::dvec3> energy;
+    std::vector<uint64_t> pixel;
+    std::vector<size_t> ringStart;
   };
   tbb::enumerable_thread_specific<Scratch> scratch;
-  for (size_t wave = 0; wave < bands.size(); wave += kWave) {
-    const size_t count = std::min(kWave, bands.size() - wave);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 4), [&](const auto& range) {
-      Scratch& sc = scratch.local();
-      std::vector<glm::dvec3>& first = sc.first;
-      std::vector<glm::dvec3>& second = sc.second;
-      std::vector<Edge>& edges = sc.edges;
-      first.resize(size_t(width) + 1);
-      second.resize(size_t(width) + 1);
-      for (size_t b = range.begin(); b != range.end(); ++b) {
-        const Band& band = bands[wave + b];
-        const glm::vec3* texels = &image.at(0, band.row);
-        if (band.row != sc.row) {
-          sc.row = band.row;
-          for (int x = 0; x < width; ++x) {
-            first[x + 1] = first[x] + glm::dvec3(texels[x]);
-            second[x + 1] = second[x] + first[x] + 0.5 * glm::dvec3(texels[x]);
-          }
-        }
-        // The two cumulative sums at t in [-W, W), continued periodically.
-        auto at = [&](double t, glm::dvec3& f, glm::dvec3& g) {
-          const bool wrapped = t < 0.0;
-          if (wrapped) t += width;
-          const int x = std::clamp(int(t), 0, width - 1);
-          const double d = t - x;
-          const glm::dvec3 l(texels[x]);
-          f = first[x] + d * l;
-          g = second[x] + d * first[x] + 0.5 * d * d * l;
-          if (wrapped) {
-            f -= first[width];
-            g -= second[width] + (t - width) * first[width];
-          }
-        };
-        // Integral over the band's z of L integrated in azimuth up to the
-        // edge, which is straight: the map's u = 0.5 - tt / 4.
-        const double dz = band.zTop - band.zBottom;
-        auto integral = [&](const Edge& e, double shift) {
-          const double tTop = (0.5 - 0.25 * (e.top + shift)) * width;
-          const double tBottom = (0.5 - 0.25 * (e.bottom + shift)) * width;
-          glm::dvec3 fTop, gTop, fBottom, gBottom;
-          if (std::abs(tTop - tBottom) < 1e-3) {
-            at(0.5 * (tTop + tBottom), fTop, gTop);
-            return fTop * dz;
-          }
-          at(tTop, fTop, gTop);
-          at(tBottom, fBottom, gBottom);
-          return (gTop - gBottom) * (dz / (tTop - tBottom));
-        };
-        double zPixel;
-        bandEdges(order, band.zTop, band.zBottom, edges, sc.up, sc.down, zPixel);
-        std::vector<Piece>& out = pieces[b];
-        out.clear();
-        glm::dvec3 previous = integral(edges[0], 0.0);
-        for (size_t e = 1; e <= edges.size(); ++e) {
-          const Edge& edge = edges[e % edges.size()];
-          const double shift = e == edges.size() ? 4.0 : 0.0;
-          const glm::dvec3 next = integral(edge, shift);
-          const double phi = 0.25 * kPiD * (edges[e - 1].mean + edge.mean + shift);
-          out.push_back({healpix::zphiToPix(order, zPixel, phi), (previous - next) * dphi});
-          previous = next;
+  // The rings are split into groups integrated in parallel; each group takes
+  // every band that reaches its rings and keeps the pieces that fall in
+  // them, so each pixel sums its pieces in band order on one thread and the
+  // result does not depend on the thread count. The bands next to a group's
+  // edge rings are integrated by both neighbours.
+  const int64_t ringsPerGroup = std::max<int64_t>(1, (rings + 63) / 64);
+  const int64_t groups = (rings + ringsPerGroup - 1) / ringsPerGroup;
+  constexpr uint64_t kNoPixel = ~uint64_t(0);
+  tbb::parallel_for(int64_t(0), groups, [&](int64_t group) {
+    Scratch& sc = scratch.local();
+    const int64_t ringA = group * ringsPerGroup + 1, ringB = std::min(rings, ringA + ringsPerGroup - 1);
+    sc.ringStart.assign(1, 0);
+    for (int64_t r = ringA; r <= ringB; ++r)
+      sc.ringStart.push_back(sc.ringStart.back() + size_t(healpix::ringPixelCount(order, r)));
+    sc.energy.assign(sc.ringStart.back(), glm::dvec3(0.0));
+    sc.pixel.assign(sc.ringStart.back(), kNoPixel);
+    std::vector<glm::dvec3>& first = sc.first;
+    std::vector<glm::dvec3>& second = sc.second;
+    std::vector<Edge>& edges = sc.edges;
+    first.resize(size_t(width) + 1);
+    second.resize(size_t(width) + 1);
+    auto begin = std::lower_bound(bands.begin(), bands.end(), ringA - 1,
+                                  [](const Band& b, int64_t r) { return b.ring < r; });
+    auto end = std::upper_bound(bands.begin(), bands.end(), ringB,
+                                [](int64_t r, const Band& b) { return r < b.ring; });
+    for (auto band = begin; band != end; ++band) {
+      const glm::vec3* texels = &image.at(0, band->row);
+      if (band->row != sc.row) {
+        sc.row = band->row;
+        for (int x = 0; x < width; ++x) {
+          first[x + 1] = first[x] + glm::dvec3(texels[x]);
+          second[x + 1] = second[x] + first[x] + 0.5 * glm::dvec3(texels[x]);
         }
       }
-    });
-    for (size_t b = 0; b < count; ++b)
-      for (const Piece& p : pieces[b]) energy[p.pixel] += p.energy;
-  }
-
-  env.radiance.resize(energy.size());
-  const double toRadiance = double(scale) / healpix::pixelSolidAngle(order);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, energy.size()), [&](const auto& range) {
-    for (size_t p = range.begin(); p != range.end(); ++p) env.radiance[p] = glm::vec3(energy[p] * toRadiance);
+      // The two cumulative sums at t in [-W, W), continued periodically.
+      auto at = [&](double t, glm::dvec3& f, glm::dvec3& g) {
+        const bool wrapped = t < 0.0;
+        if (wrapped) t += width;
+        const int x = std::clamp(int(t), 0, width - 1);
+        const double d = t - x;
+        const glm::dvec3 l(texels[x]);
+        f = first[x] + d * l;
+        g = second[x] + d * first[x] + 0.5 * d * d * l;
+        if (wrapped) {
+          f -= first[width];
+          g -= second[width] + (t - width) * first[width];
+        }
+      };
+      // Integral over the band's z of L integrated in azimuth up to the
+      // edge, which is straight: the map's u = 0.5 - tt / 4.
+      const double dz = band->zTop - band->zBottom;
+      auto integral = [&](const Edge& e, double shift) {
+        const double tTop = (0.5 - 0.25 * (e.top + shift)) * width;
+        const double tBottom = (0.5 - 0.25 * (e.bottom + shift)) * width;
+        glm::dvec3 fTop, gTop, fBottom, gBottom;
+        if (std::abs(tTop - tBottom) < 1e-3) {
+          at(0.5 * (tTop + tBottom), fTop, gTop);
+          return fTop * dz;
+        }
+        at(tTop, fTop, gTop);
+        at(tBottom, fBottom, gBottom);
+        return (gTop - gBottom) * (dz / (tTop - tBottom));
+      };
+      double zPixel;
+      bandEdges(order, band->zTop, band->zBottom, edges, sc.up, sc.down, zPixel);
+      glm::dvec3 previous = integral(edges[0], 0.0);
+      for (size_t e = 1; e <= edges.size(); ++e) {
+        const Edge& edge = edges[e % edges.size()];
+        const double shift = e == edges.size() ? 4.0 : 0.0;
+        const glm::dvec3 next = integral(edge, shift);
+        const double phi = 0.25 * kPiD * (edges[e - 1].mean + edge.mean + shift);
+        uint32_t ix, iy;
+        int face;
+        healpix::zphiToXYF(order, zPixel, phi, ix, iy, face);
+        int64_t pieceRing, pos;
+        healpix::xyfToRing(order, ix, iy, face, pieceRing, pos);
+        if (pieceRing >= ringA && pieceRing <= ringB) {
+          const size_t slot = sc.ringStart[size_t(pieceRing - ringA)] + size_t(pos);
+          sc.energy[slot] += (previous - next) * dphi;
+          sc.pixel[slot] = healpix::xyfToPix(order, ix, iy, face);
+        }
+        previous = next;
+      }
+    }
+    for (size_t slot = 0; slot < sc.energy.size(); ++slot)
+      if (sc.pixel[slot] != kNoPixel) env.radiance[sc.pixel[slot]] = glm::vec3(sc.energy[slot] * toRadiance);
   });
   setYaw(env, yawDegrees);
   finish(env);

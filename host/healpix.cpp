@@ -1,5 +1,6 @@
 #include "healpix.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <glm/geometric.hpp>
@@ -51,7 +52,7 @@ uint32_t compressBits(uint64_t v) {
 
 // s = sin(theta) if known (> -2), used near the poles where 1 - |z| loses
 // precision; this mirrors chealpix's ang2pix_nest_z_phi64.
-uint64_t zphiToPixImpl(int order, double z, double s, double phi) {
+void zphiToXYFImpl(int order, double z, double s, double phi, uint32_t& pix, uint32_t& piy, int& pface) {
   const int64_t nside = int64_t(1) << order;
   const double fn = double(nside);
   const double za = std::fabs(z);
@@ -88,7 +89,16 @@ uint64_t zphiToPixImpl(int order, double z, double s, double phi) {
       iy = jm;
     }
   }
-  return xyfToPix(order, uint32_t(ix), uint32_t(iy), face);
+  pix = uint32_t(ix);
+  piy = uint32_t(iy);
+  pface = face;
+}
+
+uint64_t zphiToPixImpl(int order, double z, double s, double phi) {
+  uint32_t ix, iy;
+  int face;
+  zphiToXYFImpl(order, z, s, phi, ix, iy, face);
+  return xyfToPix(order, ix, iy, face);
 }
 
 // Inverse projection; also returns sin(theta) near the poles (else
@@ -127,6 +137,10 @@ double angleBetween(const glm::dvec3& a, const glm::dvec3& b) {
 
 uint64_t zphiToPix(int order, double z, double phi) {
   return zphiToPixImpl(order, z, kNoSinTheta, phi);
+}
+
+void zphiToXYF(int order, double z, double phi, uint32_t& ix, uint32_t& iy, int& face) {
+  zphiToXYFImpl(order, z, kNoSinTheta, phi, ix, iy, face);
 }
 
 uint64_t vecToPix(int order, const glm::dvec3& v) {
@@ -168,6 +182,24 @@ void pixToZPhi(int order, uint64_t pix, double dx, double dy, double& z, double&
 
 uint64_t xyfToPix(int order, uint32_t ix, uint32_t iy, int face) {
   return (uint64_t(face) << (2 * order)) + spreadBits(ix) + (spreadBits(iy) << 1);
+}
+
+int64_t ringPixelCount(int order, int64_t ring) {
+  const int64_t nside = int64_t(1) << order;
+  return 4 * std::min({ring, 4 * nside - ring, nside});
+}
+
+void xyfToRing(int order, uint32_t ix, uint32_t iy, int face, int64_t& ring, int64_t& pos) {
+  const int64_t nside = int64_t(1) << order;
+  ring = kJrll[face] * nside - int64_t(ix) - int64_t(iy) - 1;
+  // Pixels per quarter of the ring, and whether the ring's first pixel sits
+  // half a pixel east (the odd rings of the equatorial zone).
+  const int64_t quarter = std::min({ring, 4 * nside - ring, nside});
+  const int64_t shift = quarter == nside ? ((ring - nside) & 1) : 0;
+  int64_t p = (kJpll[face] * quarter + int64_t(ix) - int64_t(iy) + 1 + shift) / 2;
+  if (p > 4 * nside) p -= 4 * nside;
+  if (p < 1) p += 4 * nside;
+  pos = p - 1;
 }
 
 void pixToXYF(int order, uint64_t pix, uint32_t& ix, uint32_t& iy, int& face) {

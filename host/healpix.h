@@ -33,6 +33,8 @@ constexpr double pixelSolidAngle(int order) {
 // Bit-identical to chealpix's ang2pix_nest for |z| <= 0.99; nearer the
 // poles chealpix uses sin(theta), which (z, phi) cannot carry.
 uint64_t zphiToPix(int order, double z, double phi);
+// The same pixel as (face, ix, iy).
+void zphiToXYF(int order, double z, double phi, uint32_t& ix, uint32_t& iy, int& face);
 // Unit (or any non-zero) vector -> nested index. Bit-identical to
 // chealpix's vec2pix_nest64 (uses sin(theta) from x, y near the poles).
 uint64_t vecToPix(int order, const glm::dvec3& v);
@@ -50,6 +52,12 @@ void pixToZPhi(int order, uint64_t pix, double dx, double dy, double& z, double&
 // Nested index <-> (face, ix, iy), 0 <= ix, iy < Nside.
 uint64_t xyfToPix(int order, uint32_t ix, uint32_t iy, int face);
 void pixToXYF(int order, uint64_t pix, uint32_t& ix, uint32_t& iy, int& face);
+
+// Rings of latitude, numbered 1..4 Nside - 1 from the north pole: the
+// pixel (face, ix, iy) is the pos-th (from 0, eastwards from phi = 0) of its
+// ring, the ring scheme's index minus the ring's first one.
+int64_t ringPixelCount(int order, int64_t ring);
+void xyfToRing(int order, uint32_t ix, uint32_t iy, int face, int64_t& ring, int64_t& pos);
 
 // Conservative bounding cone of a node: every direction inside pixel `pix`
 // at `order` lies within `radius` of `axis`.

@@ -156,6 +156,34 @@ TEST(Healpix, PixelCentresMatchChealpix) {
   }
 }
 
+TEST(Healpix, RingIndexMatchesChealpix) {
+  std::mt19937_64 rng(0x5eed0009);
+  for (int order : kChealpixOrders) {
+    const int64_t nside = nsideOf(order), rings = 4 * nside - 1;
+    std::vector<int64_t> start(size_t(rings) + 2, 0);
+    for (int64_t r = 1; r <= rings; ++r) start[size_t(r) + 1] = start[size_t(r)] + hp::ringPixelCount(order, r);
+    ASSERT_EQ(uint64_t(start[size_t(rings) + 1]), hp::pixelCount(order)) << "order " << order;
+    const uint64_t count = hp::pixelCount(order);
+    const uint64_t samples = std::min<uint64_t>(count, 200000);
+    int mismatches = 0;
+    for (uint64_t i = 0; i < samples; ++i) {
+      const uint64_t pix = samples == count ? i : rng() % count;
+      uint32_t ix, iy;
+      int face;
+      hp::pixToXYF(order, pix, ix, iy, face);
+      int64_t ring, pos, ref;
+      hp::xyfToRing(order, ix, iy, face, ring, pos);
+      nest2ring64(nside, int64_t(pix), &ref);
+      const bool ok = ring >= 1 && ring <= rings && pos >= 0 && pos < hp::ringPixelCount(order, ring) &&
+                      start[size_t(ring)] + pos == ref;
+      if (!ok && ++mismatches <= 5)
+        ADD_FAILURE() << "order " << order << " pixel " << pix << ": ring " << ring << " pos " << pos
+                      << ", chealpix ring index " << ref;
+    }
+    EXPECT_EQ(mismatches, 0) << "order " << order;
+  }
+}
+
 TEST(Healpix, XYFRoundTrip) {
   std::mt19937_64 rng(0x5eed0004);
   for (int order = 0; order <= hp::kMaxOrder; ++order) {
