@@ -8,6 +8,7 @@
 #include <iterator>
 
 #include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_reduce.h>
 #include <tbb/parallel_for.h>
 
 #include "healpix.h"
@@ -21,7 +22,9 @@ constexpr double kPiD = 3.14159265358979323846;
 void finish(Environment& env) {
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<float> lum(env.radiance.size());
-  for (size_t i = 0; i < lum.size(); ++i) lum[i] = luminance(env.radiance[i]);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, lum.size()), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t i = range.begin(); i != range.end(); ++i) lum[i] = luminance(env.radiance[i]);
+  });
   env.tree = buildMaxAvgTree(env.order, lum);
   env.treeSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -72,44 +75,89 @@ void equirectUV(const glm::vec3& d, double& u, double& v) {
 
 EnvironmentStats sanitizeEnvironmentImage(ImageRGB& image, const std::string& name, bool repairNonFinite) {
   EnvironmentStats stats;
-  uint64_t nonFinite = 0;
-  size_t firstNonFinite = 0;
-  double sum = 0.0;
-  float lo = INFINITY, hi = -INFINITY;
-  for (size_t i = 0; i < image.pixels.size(); ++i) {
-    for (int c = 0; c < 3; ++c) {
-      float& v = image.pixels[i][c];
-      if (!std::isfinite(v)) {
-        if (nonFinite++ == 0) firstNonFinite = i;
-        if (repairNonFinite) v = 0.0f;
-        continue;
-      }
-      lo = std::min(lo, v);
-      hi = std::max(hi, v);
-      sum += std::max(0.0f, v);
-    }
-  }
-  stats.repairedNonFiniteTexels = repairNonFinite ? nonFinite : 0;
-  if (nonFinite > 0 && !repairNonFinite)
-    throw Error(fmt::format("{}: {} NaN/Inf texel value(s), first at pixel ({}, {})", name, nonFinite,
-                            firstNonFinite % image.width, firstNonFinite / image.width));
+  // Texel values are visited in parallel over fixed blocks and the blocks'
+  // results joined in a fixed order, so the outcome does not depend on the
+  // thread count. Indices count values: 3 per pixel.
+  constexpr size_t kNone = SIZE_MAX, kBlock = size_t(1) << 14;
+  struct Scan {
+    uint64_t nonFinite = 0;
+    size_t firstNonFinite = kNone;
+    double sum = 0.0;
+    float lo = INFINITY, hi = -INFINITY;
+    bool negative = false;
+  };
+  const size_t pixels = image.pixels.size();
+  const Scan scan = tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<size_t>(0, pixels, kBlock), Scan{},
+      [&](const tbb::blocked_range<size_t>& range, Scan s) {
+        for (size_t i = range.begin(); i != range.end(); ++i)
+          for (int c = 0; c < 3; ++c) {
+            float& v = image.pixels[i][c];
+            if (!std::isfinite(v)) {
+              if (s.nonFinite++ == 0) s.firstNonFinite = 3 * i + size_t(c);
+              if (repairNonFinite) v = 0.0f;
+              continue;
+            }
+            s.lo = std::min(s.lo, v);
+            s.hi = std::max(s.hi, v);
+            s.sum += std::max(0.0f, v);
+            s.negative |= v < 0.0f;
+          }
+        return s;
+      },
+      [](Scan a, const Scan& b) {
+        a.nonFinite += b.nonFinite;
+        a.firstNonFinite = std::min(a.firstNonFinite, b.firstNonFinite);
+        a.sum += b.sum;
+        a.lo = std::min(a.lo, b.lo);
+        a.hi = std::max(a.hi, b.hi);
+        a.negative |= b.negative;
+        return a;
+      });
+  stats.repairedNonFiniteTexels = repairNonFinite ? scan.nonFinite : 0;
+  if (scan.nonFinite > 0 && !repairNonFinite)
+    throw Error(fmt::format("{}: {} NaN/Inf texel value(s), first at pixel ({}, {})", name, scan.nonFinite,
+                            scan.firstNonFinite / 3 % image.width, scan.firstNonFinite / 3 / image.width));
   // Lossy EXR compression (DWAB) leaves tiny negatives (down to -4e-3 in the
   // shipped maps); below -max(0.01, 1% of the mean) the map is broken.
-  double mean = image.pixels.empty() ? 0.0 : sum / (3.0 * double(image.pixels.size()));
-  float tolerance = float(std::max(1e-2 * mean, 1e-2));
-  for (size_t i = 0; i < image.pixels.size(); ++i) {
-    for (int c = 0; c < 3; ++c) {
-      float& v = image.pixels[i][c];
-      if (v >= 0.0f) continue;
-      if (v < -tolerance)
-        throw Error(fmt::format("{}: negative texel value {} at pixel ({}, {}) (tolerance -{})", name, v,
-                                i % image.width, i / image.width, tolerance));
-      v = 0.0f;
-      ++stats.clampedNegativeTexels;
+  if (scan.negative) {
+    const double mean = scan.sum / (3.0 * double(pixels));
+    const float tolerance = float(std::max(1e-2 * mean, 1e-2));
+    struct Clamp {
+      uint64_t clamped = 0;
+      size_t firstBroken = kNone;
+    };
+    const Clamp clamp = tbb::parallel_deterministic_reduce(
+        tbb::blocked_range<size_t>(0, pixels, kBlock), Clamp{},
+        [&](const tbb::blocked_range<size_t>& range, Clamp k) {
+          for (size_t i = range.begin(); i != range.end(); ++i)
+            for (int c = 0; c < 3; ++c) {
+              float& v = image.pixels[i][c];
+              if (v >= 0.0f) continue;
+              if (v < -tolerance) {
+                k.firstBroken = std::min(k.firstBroken, 3 * i + size_t(c));
+                continue;
+              }
+              v = 0.0f;
+              ++k.clamped;
+            }
+          return k;
+        },
+        [](Clamp a, const Clamp& b) {
+          a.clamped += b.clamped;
+          a.firstBroken = std::min(a.firstBroken, b.firstBroken);
+          return a;
+        });
+    if (clamp.firstBroken != kNone) {
+      const size_t i = clamp.firstBroken / 3;
+      throw Error(fmt::format("{}: negative texel value {} at pixel ({}, {}) (tolerance -{})", name,
+                              image.pixels[i][int(clamp.firstBroken % 3)], i % image.width, i / image.width,
+                              tolerance));
     }
+    stats.clampedNegativeTexels = clamp.clamped;
   }
-  stats.minTexel = image.pixels.empty() ? 0.0f : lo;
-  stats.maxTexel = image.pixels.empty() ? 0.0f : hi;
+  stats.minTexel = pixels == 0 ? 0.0f : scan.lo;
+  stats.maxTexel = pixels == 0 ? 0.0f : scan.hi;
   return stats;
 }
 
