@@ -301,7 +301,7 @@ Environment environmentFromEquirect(const ImageRGB& image, int order, float yawD
   // them, so each pixel sums its pieces in band order on one thread and the
   // result does not depend on the thread count. The bands next to a group's
   // edge rings are integrated by both neighbours.
-  const int64_t ringsPerGroup = std::max<int64_t>(1, (rings + 63) / 64);
+  const int64_t ringsPerGroup = resampleRingsPerGroup(order);
   const int64_t groups = (rings + ringsPerGroup - 1) / ringsPerGroup;
   constexpr uint64_t kNoPixel = ~uint64_t(0);
   tbb::parallel_for(int64_t(0), groups, [&](int64_t group) {
@@ -386,6 +386,11 @@ Environment environmentFromEquirect(const ImageRGB& image, int order, float yawD
   setYaw(env, yawDegrees);
   finish(env);
   return env;
+}
+
+int64_t resampleRingsPerGroup(int order) {
+  const int64_t n = int64_t(1) << order, rings = 4 * n - 1;
+  return std::clamp<int64_t>((rings + 63) / 64, 1, std::max<int64_t>(1, (int64_t(1) << 18) / (4 * n)));
 }
 
 Environment environmentFromPixels(int order, std::vector<glm::vec3> radiance, float yawDegrees) {

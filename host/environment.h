@@ -69,6 +69,9 @@ EnvironmentStats sanitizeEnvironmentImage(ImageRGB& image, const std::string& na
 // which shrinks with the pixels and texels), and the map's total power
 // (sum of texel radiance x texel solid angle) is kept exactly.
 Environment environmentFromEquirect(const ImageRGB& image, int order, float yawDegrees, float scale);
+// Rings of latitude per group of the resample's parallel work: about 1/64
+// of them, at most 2^18 pixels (8 MiB of buffers per thread).
+int64_t resampleRingsPerGroup(int order);
 Environment environmentFromPixels(int order, std::vector<glm::vec3> radiance, float yawDegrees = 0.0f);
 Environment constantEnvironment(int order, const glm::vec3& value);
 

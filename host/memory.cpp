@@ -11,6 +11,7 @@
 
 #include <fmt/format.h>
 
+#include "environment.h"
 #include "image_io.h"
 #include "tree.h"
 #include "tsis.h"
@@ -45,7 +46,12 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
   const uint64_t input = add("input map", uint64_t(in.inputWidth) * uint64_t(in.inputHeight) * 12);
   const uint64_t radiance = add("HEALPix radiance", pixels * 12);
   const uint64_t luminance = add("luminance (while building the trees)", pixels * 4);
-  const uint64_t resample = add("energy per pixel (while resampling)", pixels * 24);
+  // Each thread resamples a group of rings (energy and index per pixel, 32
+  // bytes) from two running sums over a texel row.
+  const uint64_t groupPixels = uint64_t(resampleRingsPerGroup(in.envOrder)) * 4 * (uint64_t(1) << in.envOrder);
+  const uint64_t resample = add("ring groups (per thread, while resampling)",
+                                uint64_t(std::max(in.threads, 1)) *
+                                    (groupPixels * 32 + (uint64_t(in.inputWidth) + 1) * 48));
   const uint64_t trees = add("max/avg trees", nodes * 8);
 
   uint64_t tables = 0;

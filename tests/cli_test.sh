@@ -396,7 +396,7 @@ PY
 # available memory) before anything large is allocated.
 edit_scene '"nside": 4' '"nside": 8192' "$tmp/s-8192.json"
 expect_render_error "not enough memory: this render needs about" "$tmp/s-8192.json" --max-memory 16G
-grep -qE "needs about 3[0-9]\.[0-9] GiB .*more than the limit of 16\.0 GiB \(--max-memory\)" "$tmp/err" && ok ||
+grep -qE "needs about 2[0-9]\.[0-9] GiB .*more than the limit of 16\.0 GiB \(--max-memory\)" "$tmp/err" && ok ||
   fail "nside 8192: need and limit not named: $(cat "$tmp/err")"
 expect_render_error "more than the limit of 512.0 MiB" "$tmp/s-8192.json" --method ht --max-memory 512M
 expect_render_error '--max-memory: "lots" is not a size' "$tmp/s-8192.json" --max-memory lots
