@@ -8,7 +8,6 @@
 #include <filesystem>
 #include <fstream>
 #include <new>
-#include <thread>
 
 #include <fmt/format.h>
 #include <OpenEXR/Iex.h>
@@ -20,9 +19,12 @@
 #include <OpenEXR/ImfPartType.h>
 #include <OpenEXR/ImfRgbaFile.h>
 #include <OpenEXR/ImfStdIO.h>
+#include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/ImfVersion.h>
 #include <png.h>
+#include <tbb/info.h>
 
+#include "memory.h"
 #include "output_file.h"
 #include "sampling.h"
 
@@ -307,6 +309,19 @@ uint64_t scanHeaders(Imf::IStream& s, uint64_t size, int version, const std::str
   return pos;
 }
 
+// OpenEXR decompresses and converts the chunks of a file on its global
+// thread pool, which is empty until the program sizes it: until then every
+// file is read in the calling thread, whatever thread count it is opened
+// with. The pool is sized once, to the threads TBB uses.
+int exrThreads() {
+  static const int threads = [] {
+    const int n = std::max(1, tbb::info::default_concurrency());
+    Imf::setGlobalThreadCount(n);
+    return n;
+  }();
+  return threads;
+}
+
 // Reads the whole image from `stream` (positioned at 0) of `size` bytes;
 // with headerOnly, only its checked size.
 ImageRGB readExrStream(Imf::IStream& stream, uint64_t size, const std::string& name, bool headerOnly = false) {
@@ -366,14 +381,19 @@ ImageRGB readExrStream(Imf::IStream& stream, uint64_t size, const std::string& n
     // pixel: up front we reserve up to 768 MiB, more if the file's size
     // makes it plausible (ZIP packs a smooth sky several hundred to one).
     image.pixels.reserve(std::min<uint64_t>(total, std::max<uint64_t>(size * 64 + width * 64, uint64_t(1) << 26)));
-    constexpr int kStrip = 64;
+    adviseHugePages(image.pixels.data(), image.pixels.capacity() * sizeof(glm::vec3));
+    // Each strip is read in one call, its chunks (16 or 32 rows for most
+    // compressions) decompressed in parallel: enough rows to keep every
+    // thread busy.
+    const int threads = exrThreads();
+    const int64_t kStrip = std::max<int64_t>(64, int64_t(32) * threads);
     stream.clear();
     stream.seekg(0);
 
     if (yca) {
       // Luminance/chroma files need OpenEXR's YCA reconstruction, which only
       // the RGBA interface offers (half precision is all such files carry).
-      Imf::RgbaInputFile file(stream);
+      Imf::RgbaInputFile file(stream, threads);
       std::vector<Imf::Rgba> rgba;
       for (int64_t y0 = dw.min.y; y0 <= dw.max.y; y0 += kStrip) {
         const int64_t y1 = std::min<int64_t>(y0 + kStrip - 1, dw.max.y);
@@ -389,15 +409,17 @@ ImageRGB readExrStream(Imf::IStream& stream, uint64_t size, const std::string& n
       return image;
     }
 
-    // Chunks of scan lines are decompressed on OpenEXR's worker threads.
-    Imf::InputFile file(stream, int(std::max(1u, std::thread::hardware_concurrency())));
+    // Chunks of scan lines are decompressed and converted on OpenEXR's
+    // worker threads.
+    Imf::InputFile file(stream, threads);
     // OpenEXR converts half/uint channels to float and fills each strip of
     // rows straight into the vec3 array (three interleaved floats per pixel).
     const size_t xs = sizeof(glm::vec3), ys = xs * width;
     for (int64_t y0 = dw.min.y; y0 <= dw.max.y; y0 += kStrip) {
       const int64_t y1 = std::min<int64_t>(y0 + kStrip - 1, dw.max.y);
       const size_t row = size_t(y0 - dw.min.y);
-      image.pixels.resize(width * (row + size_t(y1 - y0 + 1)));
+      const size_t newSize = width * (row + size_t(y1 - y0 + 1));
+      image.pixels.resize(newSize);
       float* strip = &image.pixels[width * row].x;
       const Imath::V2i origin(dw.min.x, int(y0));
       const int64_t rows = y1 - y0 + 1;
@@ -411,9 +433,9 @@ ImageRGB readExrStream(Imf::IStream& stream, uint64_t size, const std::string& n
       }
       file.setFrameBuffer(fb);
       file.readPixels(int(y0), int(y1));
+      if (!hasRgb)
+        for (size_t i = width * row; i < newSize; ++i) image.pixels[i] = glm::vec3(image.pixels[i].x);
     }
-    if (!hasRgb)
-      for (glm::vec3& p : image.pixels) p = glm::vec3(p.x);
   } catch (const Error&) {
     throw;
   } catch (const std::bad_alloc&) {

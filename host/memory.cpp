@@ -1,5 +1,6 @@
 #include "memory.h"
 
+#include <sys/mman.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -142,6 +143,19 @@ uint64_t defaultMemoryLimit() {
   }
   if (available == 0) return UINT64_MAX;  // nothing to go by: no limit
   return available / 5 * 4;
+}
+
+void adviseHugePages(const void* data, size_t bytes) {
+#ifdef MADV_HUGEPAGE
+  if (bytes < (size_t(32) << 20)) return;  // smaller blocks may share the heap with others
+  const uintptr_t page = uintptr_t(sysconf(_SC_PAGESIZE));
+  const uintptr_t begin = (reinterpret_cast<uintptr_t>(data) + page - 1) & ~(page - 1);
+  const uintptr_t end = (reinterpret_cast<uintptr_t>(data) + bytes) & ~(page - 1);
+  if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+#else
+  (void)data;
+  (void)bytes;
+#endif
 }
 
 uint64_t peakRssBytes() {

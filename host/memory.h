@@ -2,6 +2,7 @@
 // allocated, and the limit it is held to.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -34,6 +35,11 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in);
 uint64_t parseByteSize(const std::string& text);
 // 80% of what the machine (or the cgroup) has available now.
 uint64_t defaultMemoryLimit();
+// Asks the kernel to back a large buffer with huge pages where it can:
+// first touching hundreds of MiB 4 KiB page by page costs about as much as
+// decoding a large map. Only advice; a no-op for buffers under 32 MiB or
+// where unsupported.
+void adviseHugePages(const void* data, size_t bytes);
 // The process's peak resident set so far.
 uint64_t peakRssBytes();
 std::string formatBytes(uint64_t bytes);
