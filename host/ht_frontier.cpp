@@ -19,8 +19,8 @@ namespace {
 // node i of the tree layout and the BRDF x cos at its centre, and returns
 // false where the integrand is surely 0.
 template <class Factor>
-void refine(const Environment& env, const std::vector<glm::vec3>& centres, int refinements, double tolerance,
-            float coarseRatio, Factor&& factor, FrontierTable& table) {
+void refine(const Environment& env, const std::vector<glm::vec3>& centres, int refinements, float coarseRatio,
+            Factor&& factor, FrontierTable& table) {
   struct Candidate {
     FrontierNode node;
     bool split;
@@ -33,7 +33,6 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
   table.splits = 0;
   table.coarseShare = 0.0;
   const int order = env.order;
-  double mass = 0.0;  // of the current frontier
   auto push = [&](int level, uint64_t node) {
     const uint64_t i = MaxAvgTree::levelOffset(level) + node;
     const float avg = env.tree.avgv[i];
@@ -42,7 +41,6 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
     const double energy = double(avg) * healpix::pixelSolidAngle(level);
     const FrontierNode nd{level, node, node << (2 * (order - level)), centres[i], energy * double(c), bound, centre};
     candidates.push_back({nd, false});
-    mass += nd.mass;
     // The variance a node adds grows with the spread of the factor over it.
     const double spread = std::max(0.0, double(bound) - double(c));
     const double priority = level < order ? energy * spread * spread / double(c) : 0.0;
@@ -53,12 +51,10 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
   };
   for (int f = 0; f < 12; ++f) push(0, uint64_t(f));
   for (; table.splits < refinements && !heap.empty(); ++table.splits) {
-    if (heap.front().first < tolerance * mass) break;
     std::pop_heap(heap.begin(), heap.end());
     const uint32_t top = heap.back().second;
     heap.pop_back();
     candidates[top].split = true;
-    mass -= candidates[top].node.mass;
     const int level = candidates[top].node.level + 1;
     const uint64_t first = 4 * candidates[top].node.node;
     for (uint64_t j = 0; j < 4; ++j) push(level, first + j);
@@ -159,10 +155,9 @@ struct SharedKey {
   glm::vec3 normal;
   int refinements;
   float floor, coarseRatio;
-  double tolerance;
   bool operator==(const SharedKey& o) const {
     return tree == o.tree && normal == o.normal && refinements == o.refinements && floor == o.floor &&
-           coarseRatio == o.coarseRatio && tolerance == o.tolerance;
+           coarseRatio == o.coarseRatio;
   }
 };
 struct SharedKeyHash {
@@ -179,8 +174,7 @@ struct SharedKeyHash {
 const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOptions& options) {
   thread_local std::unordered_map<SharedKey, std::unique_ptr<FrontierTable>, SharedKeyHash> cache;
   thread_local uint64_t cachedTree = 0;
-  const SharedKey key{point.env.tree.id, point.n, options.sharedRefinements, options.brdfFloor, options.coarseRatio,
-                      options.tolerance};
+  const SharedKey key{point.env.tree.id, point.n, options.sharedRefinements, options.brdfFloor, options.coarseRatio};
   // Tables of an earlier environment are never used again.
   if (cachedTree != key.tree || cache.size() >= kFrontierSharedTables) cache.clear();
   cachedTree = key.tree;
@@ -198,7 +192,7 @@ const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOpti
     return true;
   };
   FrontierTable& t = *entry;
-  refine(point.env, g.centers, options.sharedRefinements, options.tolerance, options.coarseRatio, factor, t);
+  refine(point.env, g.centers, options.sharedRefinements, options.coarseRatio, factor, t);
   for (const FrontierNode& nd : t.nodes) {
     t.x.push_back(nd.centre.x);
     t.y.push_back(nd.centre.y);
@@ -282,7 +276,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
       c = std::max(centre, options.brdfFloor * bound) * vis;
       return true;
     };
-    refine(point.env, point.geometry.centers, frontierRefinements(options, n), options.tolerance, options.coarseRatio, factor, own_);
+    refine(point.env, point.geometry.centers, frontierRefinements(options, n), options.coarseRatio, factor, own_);
     touched_ = 0;
   }
   const FrontierTable& t = *table_;

@@ -46,7 +46,6 @@ struct FrontierOptions {
   // 256, for n samples (measured best at 4 to 64 spp on the test scenes).
   int refinements = -1;
   int sharedRefinements = 192;  // splits of a flat surface's shared Lambert table (< 0: not shared)
-  double tolerance = 0.0;       // stop splitting once the top priority < this x the frontier's mass
   float brdfFloor = 0.25f;      // node BRDF factor >= this x its bound
   // Visibility factor of a node the caps cover in part. Low values give its
   // visible part too little mass (large f / p); 0.85 measured best.

@@ -92,7 +92,6 @@ glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method meth
   if (method == Method::HtFrontier) {
     FrontierOptions options;
     options.refinements = methodOptions.frontierRefinements;
-    options.tolerance = methodOptions.frontierTolerance;
     return estimateHtFrontier(scene, sp, options, spp, rng, counters);
   }
   if (method == Method::Ris) return estimateRis(scene, sp, spp, methodOptions.risCandidates, rng, counters);

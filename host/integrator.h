@@ -38,7 +38,6 @@ struct MethodOptions {
   int risCandidates = 32;                        // ris: candidates M per resampled sample
   int wisOrder = 5;                              // wis*: HEALPix order of the sampled product (Nside 2^order)
   int frontierRefinements = -1;                  // ht-frontier: most node splits per shading point (< 0: 16 + spp, at most 256)
-  double frontierTolerance = 0.0;                // ht-frontier: stop splitting below this share of the mass
 };
 
 // Builds the per-process tables a method uses (HEALPix geometry, BRDF

@@ -46,7 +46,6 @@ struct RenderOptions {
   bool repairNonFinite = false;
   int wisOrder = 5;
   int frontierRefinements = -1;
-  double frontierTolerance = 0.0;
   std::string htSequence = "sphere";
   std::string maxMemory;
 };
@@ -211,7 +210,6 @@ int runRender(const RenderOptions& o) {
   rs.options.risCandidates = o.risCandidates;
   rs.options.wisOrder = o.wisOrder;
   rs.options.frontierRefinements = o.frontierRefinements;
-  rs.options.frontierTolerance = o.frontierTolerance;
   rs.options.htSphereSequence = o.htSequence == "sphere";
   rs.options.brdfBounds =
       o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
@@ -338,10 +336,6 @@ int main(int argc, char** argv) {
   render->add_option("--frontier-refinements", o.frontierRefinements,
                      "ht-frontier: most node splits per shading point (frontier of 12 + 3 x this nodes; -1: 16 + spp, at most 256)")
       ->check(CLI::Range(-1, 4096))
-      ->capture_default_str();
-  render->add_option("--frontier-tolerance", o.frontierTolerance,
-                     "ht-frontier: stop splitting once no node's priority reaches this share of the mass")
-      ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   render->add_flag("--repair-nonfinite", o.repairNonFinite,
                   "set NaN/Inf texels of the environment to 0 with a warning instead of refusing the map");
