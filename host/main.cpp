@@ -70,8 +70,9 @@ std::string resolveScene(const std::string& path) {
 }
 
 // --device gpu: the Vulkan path, or a one-line error. auto: the Vulkan path
-// on the best device (lavapipe counts); with no loader, no usable device or
-// a method the GPU path lacks, the CPU reference, and `why` says so.
+// on the best device if it is a GPU; with no loader, no usable device, only
+// a CPU Vulkan device (lavapipe) or a method the GPU path lacks, the CPU
+// reference, and `why` says so.
 std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, Method method, std::string& why) {
   if (!gpuSupportsMethod(method)) {
     if (o.device == "gpu") {
@@ -93,6 +94,12 @@ std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, Method method, std:
       int best = defaultGpuDevice(devices);
       if (best < 0) {
         why = "no usable Vulkan device";
+        return nullptr;
+      }
+      // A Vulkan device that runs on the CPU (lavapipe) is slower than the
+      // CPU reference for every method: only --device gpu uses it.
+      if (devices[best].type == "cpu") {
+        why = fmt::format("the only Vulkan device, {}, runs on the CPU; --device gpu uses it", devices[best].name);
         return nullptr;
       }
       g.deviceIndex = best;
@@ -123,6 +130,9 @@ int runInfo() {
   }
   if (best < 0)
     std::printf("--device gpu: no usable device; --device auto: the CPU reference\n");
+  else if (devices[best].type == "cpu")
+    std::printf("--device gpu uses [%d] %s; --device auto: the CPU reference (faster than a CPU Vulkan device)\n",
+                best, devices[best].name.c_str());
   else
     std::printf("--device gpu and --device auto use [%d] %s\n", best, devices[best].name.c_str());
   return 0;

@@ -34,7 +34,7 @@ small=("${loud[@]}" -q)
 # info: every device with type, driver and API version, and which one is used.
 if "$bin" info >"$tmp/info" 2>&1; then
   grep -q "type .*, driver .*, Vulkan [0-9]" "$tmp/info" && grep -q "usable: yes" "$tmp/info" \
-    && grep -q "^--device gpu and --device auto use \[" "$tmp/info" && ok || fail "info: $(cat "$tmp/info")"
+    && grep -Eq "^--device gpu (and --device auto use|uses) \[" "$tmp/info" && ok || fail "info: $(cat "$tmp/info")"
 else
   fail "info exits $?: $(cat "$tmp/info")"
 fi
@@ -63,12 +63,16 @@ PY
   fi
 done
 
-# What --device auto picks agrees with `info`.
+# What --device auto picks agrees with `info`: a GPU, never a CPU Vulkan device.
 "$bin" render "${loud[@]}" --out "$tmp/a.exr" --stats "$tmp/a.json" >/dev/null 2>"$tmp/err"
 if grep -q "auto use \[" "$tmp/info"; then
   grep -q "^device: gpu " "$tmp/err" && ok || fail "auto should use the GPU: $(cat "$tmp/err")"
 else
   grep -q "^device: cpu reference (" "$tmp/err" && ok || fail "auto should use the CPU: $(cat "$tmp/err")"
+fi
+if grep -q "auto: the CPU reference (faster than a CPU Vulkan device)" "$tmp/info"; then
+  grep -q "^device: cpu reference (the only Vulkan device, .* runs on the CPU; --device gpu uses it)" "$tmp/err" \
+    && ok || fail "auto with only a CPU Vulkan device: $(cat "$tmp/err")"
 fi
 
 expect_error "--gpu-index 99" "$bin" render "${small[@]}" --device gpu --gpu-index 99 --out "$tmp/x.exr"
