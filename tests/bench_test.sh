@@ -28,6 +28,7 @@ $py "$src/tools/bench.py" --htrender "$htrender" --scene "$tmp/scene.json" --met
 $py "$src/tools/scaling.py" --htrender "$htrender" --scene "$tmp/scene.json" --methods mis --sweeps spp \
   --spp 1,4 --width 16 --height 8 --out "$tmp/scaling" 2> "$tmp/scaling.log" ||
   { cat "$tmp/scaling.log"; exit 1; }
+mkdir -p "$tmp/report" && echo keep > "$tmp/report/other.png"
 $py "$src/tools/report.py" --htrender "$htrender" --bench "$tmp/bench" --stress "$tmp/bench" \
   --scaling "$tmp/scaling" --out "$tmp/report" 2> "$tmp/report.log" || { cat "$tmp/report.log"; exit 1; }
 
@@ -66,5 +67,6 @@ for s in ("## scene", "slide 52", "Stress scenes", "## Scaling", "ht-vis", "Effi
     check(s in md, f"report mentions {s!r}")
 check(sum(f.stat().st_size for f in (tmp / "report").iterdir()) < 2_000_000, "report is small")
 check(not list((tmp / "report").glob("*.exr")), "no EXRs in the report")
+check((tmp / "report/other.png").read_text() == "keep\n", "the report leaves files it did not write")
 print("bench_test: ok")
 EOF

@@ -529,14 +529,18 @@ def main():
     args = p.parse_args()
     outdir = Path(args.out)
     outdir.mkdir(parents=True, exist_ok=True)
-    for old in outdir.glob("*.png"):
-        old.unlink()
     tmp = outdir / ".tmp"
     tmp.mkdir(exist_ok=True)
 
     bench_dir = Path(args.bench)
     bench = json.loads((bench_dir / "results.json").read_text())
     rows = bench["results"]
+    # The charts an earlier report wrote for these scenes (a method or grid
+    # may be gone); other files in --out stay.
+    for scene in {r["scene"] for r in rows}:
+        for old in outdir.glob(f"{scene}-*.png"):
+            old.unlink()
+    (outdir / "scaling.png").unlink(missing_ok=True)
     for r in rows:
         info = next((v for k, v in bench["references"].items() if Path(k).stem == r["scene"]), {})
         r["pixels"] = info.get("width", 0) * info.get("height", 0)
