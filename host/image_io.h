@@ -3,21 +3,14 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <glm/vec3.hpp>
 
-namespace ht {
+#include "error.h"
 
-// Any failure that should end the program with a one-line message.
-struct Error : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-// Messages are one line of printable text: control characters (a newline
-// in a library's message, in a file name or a JSON key) are shown escaped.
-std::string oneLine(const std::string& s);
+namespace ht {
 
 // Linear float RGB, row-major, top row first.
 struct ImageRGB {

@@ -13,7 +13,7 @@
 #include <fmt/format.h>
 
 #include "environment.h"
-#include "image_io.h"
+#include "error.h"
 #include "tree.h"
 #include "tsis.h"
 #include "ht_frontier.h"

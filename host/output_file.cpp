@@ -15,7 +15,7 @@
 
 #include <fmt/format.h>
 
-#include "image_io.h"
+#include "error.h"
 
 namespace ht {
 

@@ -6,7 +6,7 @@
 
 #include <fmt/format.h>
 
-#include "image_io.h"  // ht::Error
+#include "error.h"  // ht::Error
 
 namespace ht::vk {
 namespace {
