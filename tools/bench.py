@@ -26,6 +26,7 @@ content, resolution, method, spp and htrender version. Its own residual error
 is estimated from the difference of its two halves and reported.
 """
 import argparse
+import csv
 import hashlib
 import io
 import json
@@ -57,6 +58,16 @@ def replace_atomically(path, write):
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def csv_text(cols, rows):
+    """The rows as CSV with a header; missing or None cells empty."""
+    with io.StringIO() as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(cols)
+        for r in rows:
+            w.writerow(["" if r.get(c) is None else r[c] for c in cols])
+        return f.getvalue()
 
 
 def write_atomic(path, data):
@@ -316,10 +327,7 @@ def main():
     write_atomic(outdir / "results.json", json.dumps(result, indent=2))
     cols = ["scene", "device", "method", "spp", "seconds", "gpu_seconds", "setup_seconds", "samples_per_pixel",
             "rmse", "relmse", "mean_abs_rel_error", "luminance_relmse", "fireflies", "device_name"]
-    csv = [",".join(cols)]
-    for r in rows:
-        csv.append(",".join("" if r.get(c) is None else str(r[c]).replace(",", " ") for c in cols))
-    write_atomic(outdir / "results.csv", "\n".join(csv) + "\n")
+    write_atomic(outdir / "results.csv", csv_text(cols, rows))
     with io.StringIO() as f:
         f.write(f"Machine: {result['machine']['cpu']}, {result['machine']['cores']} cores; devices "
                 f"{', '.join(devices)}; fastest of {args.runs} runs after a warm-up.\n\n")

@@ -28,7 +28,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench import machine, write_atomic  # noqa: E402
+from bench import csv_text, machine, write_atomic  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -138,8 +138,7 @@ def main():
     write_atomic(outdir / "scaling.json", json.dumps(result, indent=2))
     cols = ["sweep", "method", "x", "map", "spp", "width", "height", "nside", "seconds", "environment",
             "environment_load", "environment_resample", "environment_trees", "prepare", "samples_per_pixel"]
-    csv = [",".join(cols)] + [",".join(str(r.get(c, "")) for c in cols) for r in rows]
-    write_atomic(outdir / "scaling.csv", "\n".join(csv) + "\n")
+    write_atomic(outdir / "scaling.csv", csv_text(cols, rows))
     print(f"scaling: wrote {outdir}/scaling.{{csv,json}}", file=sys.stderr)
 
 
