@@ -138,7 +138,7 @@ class HtPoint {
 
   const Scene& scene;
   const Environment& env;
-  const HtOptions& options;
+  const HtOptions options;
   const HtGeometry& geometry;
   const Material& material;
   Frame frame;        // shading frame in the HEALPix frame
