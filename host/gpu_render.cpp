@@ -155,11 +155,7 @@ int defaultGpuDevice(const std::vector<GpuDeviceInfo>& devices) {
   return best;
 }
 
-bool gpuSupportsMethod(Method m) {
-  return m == Method::Uniform || m == Method::Cosine || m == Method::Env || m == Method::Brdf || m == Method::Mis ||
-         m == Method::Tsis || m == Method::Ris || m == Method::Wis || m == Method::WisBiased || m == Method::Ht ||
-         m == Method::HtVis || m == Method::HtBiased || m == Method::HtVisBiased;
-}
+bool gpuSupportsMethod(Method m) { return methodInfo(m).gpu; }
 
 std::string shaderDirNextToExecutable() {
   std::error_code ec;
@@ -333,7 +329,7 @@ void GpuRenderer::setScene(const Scene& scene) {
 // at their first use so that the baselines never build them.
 void GpuRenderer::Impl::prepareHt(const RenderSettings& s) {
   const bool table = s.options.brdfBounds == MethodOptions::BrdfBounds::Table;
-  if ((s.method == Method::HtVis || s.method == Method::HtVisBiased) && occluders > HT_MAX_CAPS)
+  if (methodInfo(s.method).family == Family::Ht && methodInfo(s.method).visibility && occluders > HT_MAX_CAPS)
     throw Error(fmt::format("method {} on the GPU handles at most {} spheres and planes (the scene has {}); "
                             "use --device cpu", methodName(s.method), HT_MAX_CAPS, occluders));
   bool changed = false;
@@ -373,11 +369,10 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
   // Square tiles, a multiple of the workgroup, sized so that one dispatch
   // draws at most kDirectionsPerDispatch directions.
   const bool wisMethod = s.method == Method::Wis || s.method == Method::WisBiased;
-  if ((s.method == Method::Tsis || wisMethod) && !m.ctx.float64)
+  if (methodInfo(s.method).gpuFloat64 && !m.ctx.float64)
     throw Error(fmt::format("method {} needs shaderFloat64 on the GPU ({} has none, or fp32 was forced); "
                             "use --device cpu", methodName(s.method), m.info.name));
-  const bool htMethod = s.method == Method::Ht || s.method == Method::HtVis || s.method == Method::HtBiased ||
-                        s.method == Method::HtVisBiased;
+  const bool htMethod = methodInfo(s.method).family == Family::Ht;
   if (htMethod) m.prepareHt(s);
   // ris draws M candidates per sample; tsis first partitions the sphere
   // (about five BRDF evaluations per region); wis evaluates the BRDF at
@@ -411,11 +406,7 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
   if (htMethod && m.recordHtSamples && m.htSampleLog.size() < logBytes)
     m.htSampleLog = vk::Buffer(m.ctx, logBytes, vk::MemoryUse::Readback);
   // HtOptions as estimateDirect (host/integrator.cpp) sets them.
-  HtOptions ho;
-  ho.visibility = s.method == Method::HtVis || s.method == Method::HtVisBiased;
-  ho.biased = s.method == Method::HtBiased || s.method == Method::HtVisBiased;
-  ho.brdfTable = s.options.brdfBounds == MethodOptions::BrdfBounds::Table;
-  ho.sphereSequence = s.options.htSphereSequence;
+  const HtOptions ho = htOptionsFor(s.method, s.options);
   if (ho.budgetRefinements > HT_MAX_BUDGET_REFINEMENTS || ho.maxLevel > 255)
     throw Error("internal: HtOptions beyond the shaders' limits");
 

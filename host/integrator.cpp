@@ -15,24 +15,42 @@
 namespace ht {
 namespace {
 
+using enum Family;
 constexpr std::array kMethods = {
-    MethodInfo{Method::Uniform, "uniform", "uniform directions on the sphere"},
-    MethodInfo{Method::Cosine, "cosine", "cosine-weighted hemisphere around the normal"},
-    MethodInfo{Method::Env, "env", "environment importance from the average tree"},
-    MethodInfo{Method::Brdf, "brdf", "BRDF importance (cosine + Phong lobe or GGX visible normals)"},
-    MethodInfo{Method::Mis, "mis", "one env and one BRDF direction per sample, power heuristic"},
-    MethodInfo{Method::Ht, "ht", "hierarchical thresholding of env x BRDF"},
-    MethodInfo{Method::HtVis, "ht-vis", "hierarchical thresholding of env x BRDF x visibility"},
-    MethodInfo{Method::HtBiased, "ht-biased", "ht with aggressive pruning and averaged BRDF values", true},
-    MethodInfo{Method::HtVisBiased, "ht-vis-biased", "ht-vis with aggressive pruning and averaged BRDF values", true},
-    MethodInfo{Method::Oracle, "oracle", "brute-force product env x BRDF x visibility (slow; the variance floor)"},
-    MethodInfo{Method::Wis, "wis", "wavelet importance sampling: warped points on the env x BRDF quadtree, f / p"},
-    MethodInfo{Method::WisBiased, "wis-biased", "wis returning the approximated product x visibility", true},
-    MethodInfo{Method::Tsis, "tsis", "two-stage importance sampling: BRDF-driven regions, env SAT inside"},
-    MethodInfo{Method::Ris, "ris", "resampled importance sampling of env x BRDF from env + BRDF candidates"},
+    MethodInfo{Method::Uniform, "uniform", "uniform directions on the sphere", Baseline, false, false, true},
+    MethodInfo{Method::Cosine, "cosine", "cosine-weighted hemisphere around the normal", Baseline, false, false, true},
+    MethodInfo{Method::Env, "env", "environment importance from the average tree", Baseline, false, false, true},
+    MethodInfo{Method::Brdf, "brdf", "BRDF importance (cosine + Phong lobe or GGX visible normals)", Baseline, false,
+               false, true},
+    MethodInfo{Method::Mis, "mis", "one env and one BRDF direction per sample, power heuristic", Baseline, false,
+               false, true, false, 2},
+    MethodInfo{Method::Ht, "ht", "hierarchical thresholding of env x BRDF", Ht, false, false, true},
+    MethodInfo{Method::HtVis, "ht-vis", "hierarchical thresholding of env x BRDF x visibility", Ht, false, true, true},
+    MethodInfo{Method::HtBiased, "ht-biased", "ht with aggressive pruning and averaged BRDF values", Ht, true, false,
+               true},
+    MethodInfo{Method::HtVisBiased, "ht-vis-biased", "ht-vis with aggressive pruning and averaged BRDF values", Ht, true,
+               true, true},
+    MethodInfo{Method::Oracle, "oracle", "brute-force product env x BRDF x visibility (slow; the variance floor)",
+               Oracle, false, true},
+    MethodInfo{Method::Wis, "wis", "wavelet importance sampling: warped points on the env x BRDF quadtree, f / p",
+               Competitor, false, false, true, true},
+    MethodInfo{Method::WisBiased, "wis-biased", "wis returning the approximated product x visibility", Competitor, true,
+               false, true, true},
+    MethodInfo{Method::Tsis, "tsis", "two-stage importance sampling: BRDF-driven regions, env SAT inside", Competitor,
+               false, false, true, true},
+    MethodInfo{Method::Ris, "ris", "resampled importance sampling of env x BRDF from env + BRDF candidates",
+               Competitor, false, false, true},
     MethodInfo{Method::HtFrontier, "ht-frontier",
-               "exactly n stratified samples of env x BRDF x visibility over an adaptive HT frontier, BRDF by MIS"},
+               "exactly n stratified samples of env x BRDF x visibility over an adaptive HT frontier, BRDF by MIS",
+               Product, false, true},
 };
+
+constexpr bool registryInEnumOrder() {
+  for (size_t i = 0; i < kMethods.size(); ++i)
+    if (size_t(kMethods[i].method) != i) return false;
+  return true;
+}
+static_assert(registryInEnumOrder(), "one row per Method, in the enum's order");
 
 float powerHeuristic(float a, float b) {
   float a2 = a * a, b2 = b * b;
@@ -49,15 +67,32 @@ std::optional<Method> parseMethod(std::string_view name) {
   return std::nullopt;
 }
 
-const char* methodName(Method m) {
-  for (const MethodInfo& info : kMethods)
-    if (info.method == m) return info.name;
+const MethodInfo& methodInfo(Method m) { return kMethods[size_t(m)]; }
+
+const char* methodName(Method m) { return methodInfo(m).name; }
+
+const char* familyName(Family f) {
+  switch (f) {
+    case Family::Baseline: return "baseline";
+    case Family::Ht: return "ht (seed)";
+    case Family::Oracle: return "oracle";
+    case Family::Competitor: return "competitor";
+    case Family::Product: return "product";
+  }
   return "?";
 }
 
+HtOptions htOptionsFor(Method method, const MethodOptions& methodOptions) {
+  HtOptions options;
+  options.visibility = methodInfo(method).visibility;
+  options.biased = methodInfo(method).biased;
+  options.brdfTable = methodOptions.brdfBounds == MethodOptions::BrdfBounds::Table;
+  options.sphereSequence = methodOptions.htSphereSequence;
+  return options;
+}
+
 void prepareMethod(const Scene& scene, Method method, const MethodOptions& options) {
-  if (method == Method::Ht || method == Method::HtVis || method == Method::HtBiased ||
-      method == Method::HtVisBiased) {
+  if (methodInfo(method).family == Family::Ht) {
     htGeometry(scene.environment.order);
     if (options.brdfBounds == MethodOptions::BrdfBounds::Table)
       for (const Material& m : scene.materials) BrdfTable::get(m);
@@ -75,15 +110,9 @@ glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const g
 
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
                          EstimateCounters& counters, const MethodOptions& methodOptions) {
-  if (method == Method::Ht || method == Method::HtVis || method == Method::HtBiased ||
-      method == Method::HtVisBiased) {
-    HtOptions options;
-    options.visibility = method == Method::HtVis || method == Method::HtVisBiased;
-    options.biased = method == Method::HtBiased || method == Method::HtVisBiased;
-    options.brdfTable = methodOptions.brdfBounds == MethodOptions::BrdfBounds::Table;
-    options.sphereSequence = methodOptions.htSphereSequence;
+  if (methodInfo(method).family == Family::Ht) {
     uint32_t pixelSeed = rng.nextUint();
-    return estimateHt(scene, sp, options, spp, pixelSeed, rng, counters);
+    return estimateHt(scene, sp, htOptionsFor(method, methodOptions), spp, pixelSeed, rng, counters);
   }
   if (method == Method::Oracle) return estimateOracle(scene, sp, spp, methodOptions.oracleOrder, rng, counters);
   if (method == Method::Wis || method == Method::WisBiased)

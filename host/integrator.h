@@ -11,6 +11,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "ht.h"
 #include "rng.h"
 #include "scene.h"
 #include "shading.h"
@@ -19,15 +20,33 @@ namespace ht {
 
 enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased, Oracle, Wis, WisBiased, Tsis, Ris, HtFrontier };
 
+// The families the methods come from.
+enum class Family {
+  Baseline,    // one technique per direction (uniform, cosine, env, brdf, mis)
+  Ht,          // the seed's hierarchical thresholding (ht, ht-vis, ht-biased, ht-vis-biased)
+  Oracle,      // the brute-force product, the variance floor
+  Competitor,  // the talk's other product samplers (wis, tsis, ris)
+  Product,     // fixed-count product sampling derived from HT (ht-frontier)
+};
+
+// One row per method: what the CLI, the integrator, the GPU renderer, the
+// memory estimate and the tests know of it.
 struct MethodInfo {
   Method method;
   const char* name;
   const char* description;
-  bool biased = false;  // converges to something other than the integral
+  Family family;
+  bool biased = false;       // converges to something other than the integral
+  bool visibility = false;   // the density includes the inner-sphere visibility caps
+  bool gpu = false;          // the Vulkan path renders it
+  bool gpuFloat64 = false;   // there, only with shaderFloat64
+  int directionsPerSample = 1;
 };
 std::span<const MethodInfo> allMethods();
+const MethodInfo& methodInfo(Method m);
 std::optional<Method> parseMethod(std::string_view name);
 const char* methodName(Method m);
+const char* familyName(Family f);
 
 // Settings of the methods that have any; each field names its method.
 struct MethodOptions {
@@ -39,6 +58,9 @@ struct MethodOptions {
   int wisOrder = 5;                              // wis*: HEALPix order of the sampled product (Nside 2^order)
   int frontierRefinements = -1;                  // ht-frontier: most node splits per shading point (< 0: 16 + spp, at most 256)
 };
+
+// The HT traversal's options for one of the `ht*` methods.
+HtOptions htOptionsFor(Method method, const MethodOptions& options);
 
 // Builds the per-process tables a method uses (HEALPix geometry, BRDF
 // tables), so that timing a render does not include them.

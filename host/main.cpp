@@ -391,7 +391,10 @@ int main(int argc, char** argv) {
   try {
     if (*info) return runInfo();
     if (*methods) {
-      for (const MethodInfo& m : allMethods()) std::printf("%-10s %s\n", m.name, m.description);
+      std::printf("%-14s %-11s %-8s %-4s %s\n", "method", "family", "biased", "gpu", "samples");
+      for (const MethodInfo& m : allMethods())
+        std::printf("%-14s %-11s %-8s %-4s %s\n", m.name, familyName(m.family), m.biased ? "yes" : "no",
+                    m.gpu ? (m.gpuFloat64 ? "fp64" : "yes") : "no", m.description);
       return 0;
     }
     if (*average) {

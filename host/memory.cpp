@@ -23,9 +23,11 @@ namespace ht {
 
 namespace {
 
-bool isHt(Method m) {
-  return m == Method::Ht || m == Method::HtVis || m == Method::HtBiased || m == Method::HtVisBiased ||
-         m == Method::HtFrontier;
+bool isHt(Method m) { return methodInfo(m).family == Family::Ht; }
+// The methods that read HT's node geometry on the CPU.
+bool usesHtGeometry(Method m) {
+  const Family f = methodInfo(m).family;
+  return f == Family::Ht || f == Family::Oracle || f == Family::Product;
 }
 
 // Code, libraries and TBB, as measured (peak RSS) rendering a tiny scene.
@@ -56,7 +58,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
   const uint64_t trees = add("max/avg trees", nodes * 8);
 
   uint64_t tables = 0;
-  if (isHt(in.method) || in.method == Method::Oracle) tables += add("HT node geometry", nodes * 20);
+  if (usesHtGeometry(in.method)) tables += add("HT node geometry", nodes * 20);
   if (in.method == Method::Oracle) {
     const int k = std::clamp(in.options.oracleOrder, 0, in.envOrder);
     tables += add("oracle tables (per thread)", uint64_t(std::max(in.threads, 1)) * MaxAvgTree::levelSize(k) * 40);

@@ -26,7 +26,8 @@ Environment onePixelSun(float background = 0.02f) { return test::onePixelSun(kEn
 std::vector<MethodInfo> unbiasedMethods() {
   std::vector<MethodInfo> methods;
   for (const MethodInfo& m : allMethods())
-    if (!m.biased && (m.method <= Method::HtVis || m.method == Method::HtFrontier)) methods.push_back(m);
+    if (!m.biased && (m.family == Family::Baseline || m.family == Family::Ht || m.family == Family::Product))
+      methods.push_back(m);
   return methods;
 }
 

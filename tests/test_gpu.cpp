@@ -505,11 +505,7 @@ std::vector<HtSample> cpuHtSamples(const Scene& scene, const RenderSettings& s, 
   if (!intersectScene(scene, ray, 0.0f, INFINITY, hit)) return {};
   ShadingPoint sp{hit.position, hit.normal, -ray.dir, &scene.materials[hit.material]};
   Rng rng(s.seed, pixelStream(x, y, s.width));
-  HtOptions o;
-  o.visibility = s.method == Method::HtVis || s.method == Method::HtVisBiased;
-  o.biased = s.method == Method::HtBiased || s.method == Method::HtVisBiased;
-  o.brdfTable = s.options.brdfBounds == MethodOptions::BrdfBounds::Table;
-  o.sphereSequence = s.options.htSphereSequence;
+  const HtOptions o = htOptionsFor(s.method, s.options);
   const uint32_t pixelSeed = rng.nextUint();
   HtPoint point(scene, sp, o);
   point.setBudget(double(s.spp));

@@ -195,7 +195,7 @@ def machine():
 
 def all_methods(htrender):
     names = []
-    for line in run([htrender, "methods"]).splitlines():
+    for line in run([htrender, "methods"]).splitlines()[1:]:  # after the header
         if line.strip() and not line.startswith(" "):
             names.append(line.split()[0])
     return names
