@@ -27,19 +27,6 @@ constexpr std::array<std::array<uint8_t, 4>, 24> kPermutations = [] {
   return p;
 }();
 
-// cos(max(0, angle(a, b) - radius)): the largest cosine to b over a cone.
-float cosClosest(const glm::vec3& a, const glm::vec3& b, float cosR, float sinR) {
-  float c = std::clamp(glm::dot(a, b), -1.0f, 1.0f);
-  if (c >= cosR) return 1.0f;
-  return c * cosR + std::sqrt(1.0f - c * c) * sinR;
-}
-// cos(min(pi, angle(a, b) + radius)): the smallest cosine to b over a cone.
-float cosFarthest(const glm::vec3& a, const glm::vec3& b, float cosR, float sinR) {
-  float c = std::clamp(glm::dot(a, b), -1.0f, 1.0f);
-  if (c <= -cosR) return -1.0f;
-  return c * cosR - std::sqrt(1.0f - c * c) * sinR;
-}
-
 // Largest angle from a pixel's centre to its corners, with the margin that
 // covers edges bulging past the corner-to-corner span and rounding.
 double cornerRadius(int level, uint64_t pix) {

@@ -15,11 +15,14 @@
 // sum f(w) / (s h(w)), with f the exact integrand.
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <memory>
 #include <cstdint>
 #include <vector>
 
+#include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
 #include "brdf_table.h"
@@ -44,6 +47,20 @@ struct HtOptions {
   bool sphereSequence = true;
   float biasedSmoothness = 0.25f;  // biased: a node is smooth if BRDF bound <= (1 + this) x centre
 };
+
+// Cosine bounds over a cone of radius R (cos R, sin R) around a, towards b:
+// cos(max(0, angle(a, b) - R)), the largest cosine, and
+// cos(min(pi, angle(a, b) + R)), the smallest.
+inline float cosClosest(const glm::vec3& a, const glm::vec3& b, float cosR, float sinR) {
+  float c = std::clamp(glm::dot(a, b), -1.0f, 1.0f);
+  if (c >= cosR) return 1.0f;
+  return c * cosR + std::sqrt(1.0f - c * c) * sinR;
+}
+inline float cosFarthest(const glm::vec3& a, const glm::vec3& b, float cosR, float sinR) {
+  float c = std::clamp(glm::dot(a, b), -1.0f, 1.0f);
+  if (c <= -cosR) return -1.0f;
+  return c * cosR - std::sqrt(1.0f - c * c) * sinR;
+}
 
 // HEALPix geometry shared by every shading point: per node (same layout as
 // the max/avg trees) its centre (HEALPix frame) and the cosine and sine of an

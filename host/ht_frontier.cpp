@@ -79,13 +79,6 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
   table.coarseShare = total > 0.0 ? coarse / total : 0.0;
 }
 
-// cos(max(0, angle(a, b) - radius)): the largest cosine to b over a cone.
-float cosClosest(const glm::vec3& a, const glm::vec3& b, float cosR, float sinR) {
-  float c = std::clamp(glm::dot(a, b), -1.0f, 1.0f);
-  if (c >= cosR) return 1.0f;
-  return c * cosR + std::sqrt(1.0f - c * c) * sinR;
-}
-
 // A spherical cap of blocked directions seen from a shading point (HEALPix
 // frame), by the cosine and sine of its half-angle: the caps of HT's
 // visibility factor, shrunk by the same milliradian, without per-level tables.
@@ -130,26 +123,6 @@ int visibilityClass(const std::vector<LightCap>& caps, const HtGeometry& g, cons
   return partial ? 2 : 1;
 }
 
-// Lowers vis[k] to 0 for nodes inside one cap and to `partial` for nodes it
-// covers in part. A node lies inside when angle(centre, axis) <= A - R with
-// A > R and outside when it is >= A + R (A the cap's, R the node level's
-// radius), in cosines by the angle-addition formulas; the cap's 1e-3 margin
-// covers their rounding. Branch-free, so that it vectorises.
-void capVisibility(const float* __restrict x, const float* __restrict y, const float* __restrict z,
-                   const float* __restrict cosR, const float* __restrict sinR, uint32_t count, float ax, float ay,
-                   float az, float cA, float sA, float partial, float* __restrict vis) {
-  for (uint32_t k = 0; k < count; ++k) {
-    const float d = x[k] * ax + y[k] * ay + z[k] * az;
-    const float cosInside = cA * cosR[k] + sA * sinR[k];
-    const float sinAMinusR = sA * cosR[k] - cA * sinR[k];
-    const float cosOutside = cA * cosR[k] - sA * sinR[k];
-    float v = vis[k];
-    v = d > cosOutside ? std::min(v, partial) : v;
-    v = sinAMinusR > 0.0f && d >= cosInside ? 0.0f : v;
-    vis[k] = v;
-  }
-}
-
 struct SharedKey {
   uint64_t tree;
   glm::vec3 normal;
@@ -191,16 +164,8 @@ const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOpti
     c = std::max(centre, options.brdfFloor * bound);
     return true;
   };
-  FrontierTable& t = *entry;
-  refine(point.env, g.centers, options.sharedRefinements, options.coarseRatio, factor, t);
-  for (const FrontierNode& nd : t.nodes) {
-    t.x.push_back(nd.centre.x);
-    t.y.push_back(nd.centre.y);
-    t.z.push_back(nd.centre.z);
-    t.cosRadius.push_back(std::cos(g.levelRadius[size_t(nd.level)]));
-    t.sinRadius.push_back(std::sin(g.levelRadius[size_t(nd.level)]));
-  }
-  return t;
+  refine(point.env, g.centers, options.sharedRefinements, options.coarseRatio, factor, *entry);
+  return *entry;
 }
 
 }  // namespace
@@ -221,42 +186,29 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
     // The point's own caps, each with the faces it can reach. The cap of
     // the surface's own plane is left out: the table has no mass below it
     // but for nodes the horizon cuts, where cos+ is small.
-    struct FaceCaps {
-      const LightCap* cap;
-      uint32_t faces;
-    };
-    thread_local std::vector<FaceCaps> caps;
-    caps.clear();
+    thread_local std::array<std::vector<LightCap>, 12> faceCaps;
     const HtGeometry& g = point.geometry;
+    touched_ = 0;
+    for (std::vector<LightCap>& caps : faceCaps) caps.clear();
     for (const LightCap& c : allCaps) {
       if (glm::dot(c.axis, point.n) < -0.9999f) continue;
       const float cosOutside = c.cosA * g.levelCosRadius[0] - c.sinA * g.levelSinRadius[0];
-      uint32_t faces = 0;
       for (uint32_t f = 0; f < 12; ++f)
-        if (glm::dot(g.centers[f], c.axis) > cosOutside) faces |= 1u << f;
-      if (faces) caps.push_back({&c, faces});
+        if (glm::dot(g.centers[f], c.axis) > cosOutside) {
+          faceCaps[f].push_back(c);
+          touched_ |= 1u << f;
+        }
     }
-    touched_ = 0;
-    for (const FaceCaps& fc : caps) touched_ |= fc.faces;
     const FrontierTable& t = *table_;
     mass_.resize(t.nodes.size());
     cum_.resize(t.nodes.size());
-    vis_.resize(t.nodes.size());
-    const float partial = options.partialVisibility;
     for (uint32_t f = 0; f < 12; ++f) {
       if (!(touched_ & (1u << f))) continue;
-      const uint32_t first = t.faceStart[f], end = t.faceStart[f + 1];
-      std::fill(vis_.begin() + first, vis_.begin() + end, 1.0f);
-      for (const FaceCaps& fc : caps) {
-        if (!(fc.faces & (1u << f))) continue;
-        const float ax = fc.cap->axis.x, ay = fc.cap->axis.y, az = fc.cap->axis.z;
-        const float cA = fc.cap->cosA, sA = fc.cap->sinA;
-        capVisibility(t.x.data() + first, t.y.data() + first, t.z.data() + first, t.cosRadius.data() + first,
-                      t.sinRadius.data() + first, end - first, ax, ay, az, cA, sA, partial, vis_.data() + first);
-      }
       double acc = 0.0;
-      for (uint32_t k = first; k < end; ++k) {
-        mass_[k] = t.nodes[k].mass * double(vis_[k]);
+      for (uint32_t k = t.faceStart[f]; k < t.faceStart[f + 1]; ++k) {
+        const FrontierNode& nd = t.nodes[k];
+        const int cls = visibilityClass(faceCaps[f], g, nd.centre, nd.level);
+        mass_[k] = cls == 0 ? 0.0 : cls == 2 ? nd.mass * double(options.partialVisibility) : nd.mass;
         cum_[k] = acc;
         acc += mass_[k];
       }

@@ -41,11 +41,14 @@
 
 namespace ht {
 
+// Splits of a flat surface's shared Lambert table, by default.
+constexpr int kFrontierSharedRefinements = 192;
+
 struct FrontierOptions {
   // At most this many node splits per shading point; < 0: 16 + n, at most
   // 256, for n samples (measured best at 4 to 64 spp on the test scenes).
   int refinements = -1;
-  int sharedRefinements = 192;  // splits of a flat surface's shared Lambert table (< 0: not shared)
+  int sharedRefinements = kFrontierSharedRefinements;  // a flat surface's shared table (< 0: not shared)
   float brdfFloor = 0.25f;      // node BRDF factor >= this x its bound
   // Visibility factor of a node the caps cover in part. Low values give its
   // visible part too little mass (large f / p); 0.85 measured best.
@@ -71,9 +74,6 @@ struct FrontierTable {
   std::vector<FrontierNode> nodes;
   std::vector<double> cum;              // cum[k]: mass of the nodes before k (nodes.size() + 1 entries)
   std::array<uint32_t, 13> faceStart{};  // the first node of each face, and the end
-  // For the caps test of shared tables, per node: its centre and the cosine
-  // and sine of a radius that bounds every node of its level.
-  std::vector<float> x, y, z, cosRadius, sinRadius;
   double coarseShare = 0.0;  // share of the mass in nodes coarse for the BRDF
   int splits = 0;
 };
@@ -109,7 +109,6 @@ class Frontier {
   // `cum_` their prefix sums from the face's first node.
   uint32_t touched_ = 0;
   std::vector<double> mass_, cum_;
-  std::vector<float> vis_;
   std::array<double, 13> faceCum_{};  // mass of the faces before each face
   double total_ = 0.0;
 
@@ -122,9 +121,9 @@ class Frontier {
 };
 
 // Shared tables one thread keeps at most, and the bytes of one at the default
-// size (nodes, prefix sums and the caps test's arrays).
+// size (nodes and prefix sums).
 constexpr uint64_t kFrontierSharedTables = 64;
-constexpr uint64_t kFrontierSharedTableBytes = (3 * 192 + 12) * (sizeof(FrontierNode) + 8 + 20);
+constexpr uint64_t kFrontierSharedTableBytes = (3 * kFrontierSharedRefinements + 12) * (sizeof(FrontierNode) + 8);
 
 // The splits a per-point frontier makes for n samples.
 int frontierRefinements(const FrontierOptions& options, int n);
