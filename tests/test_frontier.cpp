@@ -61,6 +61,28 @@ void prepare(const ShadingSetup& s, const FrontierOptions& options, int n, Prepa
   p.frontier.build(*p.point, p.sp, options, n);
 }
 
+// Every setup's mean over `batches` estimates of n directions, for each n
+// in `counts`, against the brute force on a sub x sub grid per pixel (its
+// error taken from the grid of half the size).
+void expectUnbiased(const std::vector<int>& counts, int batches, uint32_t seedBase, int sub) {
+  const std::vector<ShadingSetup> all = setups();
+  const int tests = int(all.size() * counts.size() * 3);
+  const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
+  for (const ShadingSetup& s : all) {
+    const glm::dvec3 ref = bruteForceIntegral(s, sub);
+    const glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, sub / 2));
+    for (int n : counts) {
+      MeanAndError e = repeatedEstimates(s, Method::HtFrontier, batches, n, seedBase + uint32_t(n));
+      for (int c = 0; c < 3; ++c) {
+        const double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
+        ASSERT_GT(se, 0.0) << s.name;
+        EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
+            << s.name << " n " << n << " channel " << c << ": mean " << e.mean[c] << " reference " << ref[c];
+      }
+    }
+  }
+}
+
 }  // namespace
 
 // Directions drawn from uniform points of the mass CDF follow the density
@@ -136,27 +158,9 @@ TEST(Frontier, PathsTaken) {
 }
 
 // The mean of many estimates matches the brute-force integral (z-test,
-// Sidak-corrected over setups, sample counts and channels), with the balance
-// heuristic's BRDF share forced high and off as well as by default.
-TEST(Frontier, UnbiasedAgainstBruteForce) {
-  const std::vector<ShadingSetup> all = setups();
-  const std::vector<int> counts = {1, 5, 16};
-  const int tests = int(all.size() * counts.size() * 3);
-  const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
-  for (const ShadingSetup& s : all) {
-    const glm::dvec3 ref = bruteForceIntegral(s, 8);
-    const glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, 4));
-    for (int n : counts) {
-      MeanAndError e = repeatedEstimates(s, Method::HtFrontier, 4000, n, 500 + n);
-      for (int c = 0; c < 3; ++c) {
-        const double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
-        ASSERT_GT(se, 0.0) << s.name;
-        EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
-            << s.name << " n " << n << " channel " << c << ": mean " << e.mean[c] << " reference " << ref[c];
-      }
-    }
-  }
-}
+// Sidak-corrected over setups, sample counts and channels); the setups take
+// every path (own and shared tables, BRDF samples by MIS).
+TEST(Frontier, UnbiasedAgainstBruteForce) { expectUnbiased({1, 5, 16}, 4000, 500, 8); }
 
 // A shared table is a function of its normal and environment alone: the
 // image is the same whatever the thread count or what was rendered before.
@@ -183,23 +187,11 @@ TEST(Frontier, SharingNeverChangesTheImage) {
 // Where users go: 256 and 1024 directions per estimate, on every setup
 // (z-test against the brute force, Sidak-corrected), with exact counts.
 TEST(FrontierSlow, UnbiasedAtHighSpp) {
-  const std::vector<ShadingSetup> all = setups();
-  const std::vector<int> counts = {256, 1024};
-  const int tests = int(all.size() * counts.size() * 3);
-  const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
-  for (const ShadingSetup& s : all) {
-    const glm::dvec3 ref = bruteForceIntegral(s, 12);
-    const glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, 6));
-    for (int n : counts) {
-      MeanAndError e = repeatedEstimates(s, Method::HtFrontier, 300, n, 900 + n);
-      for (int c = 0; c < 3; ++c) {
-        const double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
-        ASSERT_GT(se, 0.0) << s.name;
-        EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
-            << s.name << " n " << n << " channel " << c << ": mean " << e.mean[c] << " reference " << ref[c];
-      }
-      ShadingPoint sp = s.sp;
-      sp.material = &s.scene.materials[0];
+  expectUnbiased({256, 1024}, 300, 900, 12);
+  for (const ShadingSetup& s : setups()) {
+    ShadingPoint sp = s.sp;
+    sp.material = &s.scene.materials[0];
+    for (int n : {256, 1024}) {
       Rng rng(3, 1);
       EstimateCounters counters;
       estimateDirect(s.scene, sp, Method::HtFrontier, n, rng, counters);
