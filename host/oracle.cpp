@@ -17,6 +17,11 @@ namespace {
 constexpr int kVirtualLevels = 3;
 // Share of every choice kept for unresolved nodes.
 constexpr double kUnresolvedShare = 0.002;
+// A node whose points are all shadowed but that is not surely dark (a
+// shadow's edge crosses it) keeps this fraction of its unshadowed product:
+// lit directions in it then weigh at most 1 / kShadowedWeight times their
+// share, instead of the heavy tail a small common share gives.
+constexpr double kShadowedWeight = 0.25;
 
 // The three densities every choice mixes.
 struct Weights {
@@ -80,8 +85,9 @@ struct Point {
   // A node with environment average e, judged by f cos V at its own centre
   // or at the centres of its four children. A node whose points are all
   // dark but that is not surely dark is unresolved, weighted by e times f cos
-  // at its shadowed points or, where every point lies below the surface, by
-  // e times the largest f cos seen (set by the caller once it is known).
+  // at its shadowed points (and kShadowedWeight of that as its product) or,
+  // where every point lies below the surface, by e times the largest f cos
+  // seen (set by the caller once it is known).
   Weights weights(int level, uint64_t node, double e, bool children) const {
     Weights w;
     w.env = e;
@@ -92,6 +98,7 @@ struct Point {
     else
       w.product = e * product(level, node, shadowed);
     if (w.product == 0.0 && !surelyDark(level, node)) {
+      w.product = kShadowedWeight * e * shadowed;
       w.unresolved = e * shadowed;
       w.belowSurface = shadowed == 0.0;
     }
