@@ -50,10 +50,14 @@ float specularLobeProbability(const Material& m) {
   return s / (s + d);
 }
 
-glm::vec3 sampleBsdf(const Material& m, const glm::vec3& wo, const glm::vec3& u) {
-  float ps = specularLobeProbability(m);
-  glm::vec2 uv(u.y, u.z);
-  if (u.x >= ps) return sampleCosineHemisphere(uv);
+glm::vec3 sampleBsdf(const Material& m, const glm::vec3& wo, glm::vec2 u) {
+  // u.x picks the lobe and is rescaled inside the part it falls in, so one
+  // stratified 2-D point stays stratified within each lobe.
+  const float ps = specularLobeProbability(m);
+  const bool diffuse = u.x >= ps;
+  const float x = diffuse ? (u.x - ps) / (1.0f - ps) : u.x / ps;
+  const glm::vec2 uv(std::min(x, kBelowOneF), u.y);
+  if (diffuse) return sampleCosineHemisphere(uv);
   if (m.type == MaterialType::Phong) {
     Frame lobe(mirror(wo));
     return lobe.toWorld(samplePowerCosine(uv, m.exponent));

@@ -24,9 +24,9 @@ glm::vec3 evalBsdf(const Material& m, const glm::vec3& wo, const glm::vec3& wi);
 // Probability of picking the specular lobe when sampling.
 float specularLobeProbability(const Material& m);
 
-// Draws wi given wo (u.x chooses the lobe, u.yz drive it). The result may
+// Draws wi given wo (u.x chooses the lobe, then drives it with u.y). The result may
 // point below the surface, where evalBsdf is zero.
-glm::vec3 sampleBsdf(const Material& m, const glm::vec3& wo, const glm::vec3& u);
+glm::vec3 sampleBsdf(const Material& m, const glm::vec3& wo, glm::vec2 u);
 float bsdfPdf(const Material& m, const glm::vec3& wo, const glm::vec3& wi);
 
 }  // namespace ht

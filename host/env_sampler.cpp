@@ -1,44 +1,51 @@
 #include "env_sampler.h"
 
+#include <algorithm>
+
+#include "sampling.h"
+
 namespace ht {
 namespace {
 
-// Picks index i of n weights with probability w[i] / sum; returns that
-// probability. The last non-zero weight absorbs rounding.
+// Picks index i of n weights with probability w[i] / sum (returned in prob,
+// in float as environmentPixelProbability has it) and rescales u to [0,1)
+// inside the pick. The last non-zero weight absorbs rounding.
 template <int N>
-int pickWeighted(const float* w, float u, float& prob) {
+int pickRescaled(const float* w, double& u, float& prob) {
   float sum = 0.0f;
   for (int i = 0; i < N; ++i) sum += w[i];
-  float target = u * sum;
+  const double target = u * double(sum);
   int last = 0;
-  float acc = 0.0f;
+  double before = 0.0, acc = 0.0;
   for (int i = 0; i < N; ++i) {
     if (w[i] <= 0.0f) continue;
     last = i;
-    acc += w[i];
+    before = acc;
+    acc += double(w[i]);
     if (target < acc) break;
   }
   prob = w[last] / sum;
+  u = std::clamp((target - before) / double(w[last]), 0.0, kBelowOneD);
   return last;
 }
 
 }  // namespace
 
-EnvSample sampleEnvironment(const Environment& env, Rng& rng) {
+EnvSample sampleEnvironment(const Environment& env, glm::dvec2 u) {
   const MaxAvgTree& t = env.tree;
   if (!env.hasLight()) return {glm::vec3(0.0f, 1.0f, 0.0f), 0, 0.0f};
+  double x = u.x;
   float prob;
-  uint64_t node = uint64_t(pickWeighted<12>(&t.avgv[0], rng.next(), prob));
+  uint64_t node = uint64_t(pickRescaled<12>(&t.avgv[0], x, prob));
   double p = prob;
   for (int level = 1; level <= t.order; ++level) {
     uint64_t first = 4 * node;
-    node = first + uint64_t(pickWeighted<4>(&t.avgv[MaxAvgTree::levelOffset(level) + first], rng.next(), prob));
+    node = first + uint64_t(pickRescaled<4>(&t.avgv[MaxAvgTree::levelOffset(level) + first], x, prob));
     p *= prob;
   }
-  float dx = rng.next(), dy = rng.next();
   EnvSample s;
   s.pixel = node;
-  s.dir = env.direction(env.order, node, dx, dy);
+  s.dir = env.direction(env.order, node, std::min(float(x), kBelowOneF), std::min(float(u.y), kBelowOneF));
   s.pdf = float(p / env.pixelSolidAngle());
   return s;
 }

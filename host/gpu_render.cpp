@@ -42,6 +42,8 @@ static_assert(int(Method::Oracle) == HT_METHOD_ORACLE && int(Method::Wis) == HT_
               int(Method::WisBiased) == HT_METHOD_WIS_BIASED && int(Method::Tsis) == HT_METHOD_TSIS &&
               int(Method::Ris) == HT_METHOD_RIS);
 static_assert(BrdfTable::kMargin == float(HT_BRDF_TABLE_MARGIN));
+static_assert(uint32_t(SamplerKind::Independent) == HT_SAMPLER_INDEPENDENT &&
+              uint32_t(SamplerKind::Stratified) == HT_SAMPLER_STRATIFIED);
 static_assert(TsisPoint::kDefaultRegions == HT_TSIS_REGIONS && TsisTable::kMaxLevel == HT_TSIS_MAX_LEVEL);
 static_assert(WisPoint::kExactLevels == HT_WIS_EXACT_LEVELS && WisPoint::kMaxOrder == HT_WIS_MAX_ORDER &&
               MaxAvgTree::levelOffset(HT_WIS_EXACT_LEVELS + 1) == HT_WIS_TOP_NODES);
@@ -451,6 +453,7 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
       push.tsisScratch = s.method == Method::Tsis ? m.tsisScratch.address() : 0;
       push.wisScratch = wisMethod ? m.wisScratch.address() : 0;
       push.wisOrder = uint32_t(std::max(s.options.wisOrder, 0));
+      push.samplerKind = uint32_t(s.options.sampler);
       push.pixelState = m.pixelState.address();
       push.canaryLoops = 2;
       push.canaryZero = 0;

@@ -335,12 +335,12 @@ struct HtPoint::Walk {
   uint32_t seed;
   double u;
   int face;
-  Rng& jitter;
+  PixelSampler& jitter;  // sample k's point inside its cell: sample index k, dimension 0
   std::vector<HtSample>& out;
   HtCounters& counters;
 };
 
-void HtPoint::traverse(uint32_t pixelSeed, float u, Rng& jitter, std::vector<HtSample>& out,
+void HtPoint::traverse(uint32_t pixelSeed, float u, PixelSampler& jitter, std::vector<HtSample>& out,
                        HtCounters& counters) const {
   if (s_ <= 0.0) return;
   for (int f = 0; f < 12; ++f) {
@@ -388,7 +388,8 @@ bool HtPoint::stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pat
   if (double(r) + w.u >= t) return true;
   if (double(r) + double(stride(level)) + w.u < t) return false;
   HtSample s;
-  const glm::vec2 jitter = w.jitter.next2();
+  w.jitter.startSample(uint32_t(w.counters.samples));
+  const glm::vec2 jitter = w.jitter.get2D();
   glm::dvec3 hp = healpix::pixToVec(level, node, jitter.x, jitter.y);
   s.dir = env.fromHealpixFrame(hp);
   s.pixel = healpix::vecToPix(env.order, hp);
@@ -421,8 +422,10 @@ void HtPoint::visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float
   // One candidate (or, at the deepest level, all that remain), each uniform in the cell.
   const double cells = std::ldexp(1.0, level - env.order);
   for (double i = double(r); i + w.u < t; i += step) {
-    double dx = (double(sx) + w.jitter.next()) / cells;
-    double dy = (double(sy) + w.jitter.next()) / cells;
+    w.jitter.startSample(uint32_t(w.counters.samples));
+    const glm::vec2 jitter = w.jitter.get2D();
+    double dx = (double(sx) + jitter.x) / cells;
+    double dy = (double(sy) + jitter.y) / cells;
     HtSample s;
     s.dir = env.fromHealpixFrame(healpix::pixToVec(env.order, leaf, dx, dy));
     s.pixel = leaf;
@@ -438,7 +441,7 @@ void HtPoint::visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float
 }
 
 glm::vec3 estimateHt(const Scene& scene, const ShadingPoint& sp, const HtOptions& options, int n, uint32_t pixelSeed,
-                     Rng& rng, EstimateCounters& counters) {
+                     Rng& rng, PixelSampler& sampler, EstimateCounters& counters) {
   if (!scene.environment.hasLight()) return glm::vec3(0.0f);
   HtPoint ht(scene, sp, options);
   ht.setBudget(double(n));
@@ -446,7 +449,7 @@ glm::vec3 estimateHt(const Scene& scene, const ShadingPoint& sp, const HtOptions
   samples.clear();
   HtCounters hc;
   float u = rng.next();
-  ht.traverse(pixelSeed, u, rng, samples, hc);
+  ht.traverse(pixelSeed, u, sampler, samples, hc);
 
   const Frame shading(sp.normal);
   const glm::vec3 woLocal = shading.toLocal(sp.wo);

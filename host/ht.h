@@ -28,6 +28,7 @@
 #include "brdf_table.h"
 #include "shading.h"
 #include "rng.h"
+#include "sampler.h"
 #include "sampling.h"
 #include "scene.h"
 
@@ -143,7 +144,7 @@ class HtPoint {
   float pathBound(uint64_t leaf) const;
 
   // Runs the traversal, appending the accepted samples to `out`.
-  void traverse(uint32_t pixelSeed, float u, Rng& jitter, std::vector<HtSample>& out, HtCounters& counters) const;
+  void traverse(uint32_t pixelSeed, float u, PixelSampler& jitter, std::vector<HtSample>& out, HtCounters& counters) const;
 
   // Lowest candidate index of a node, from the digit permutations on its path.
   uint64_t lowestCandidate(uint32_t pixelSeed, int level, uint64_t node) const;
@@ -187,8 +188,10 @@ class HtPoint {
   double s_ = 0.0;
 };
 
-// HT estimate at a shading point with n expected samples (the `ht*` methods).
+// HT estimate at a shading point with n expected samples (the `ht*` methods):
+// candidates from pixelSeed and one draw of rng, each accepted sample's
+// point inside its cell from the sampler.
 glm::vec3 estimateHt(const Scene& scene, const ShadingPoint& sp, const HtOptions& options, int n,
-                     uint32_t pixelSeed, Rng& rng, EstimateCounters& counters);
+                     uint32_t pixelSeed, Rng& rng, PixelSampler& sampler, EstimateCounters& counters);
 
 }  // namespace ht

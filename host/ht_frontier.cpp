@@ -334,7 +334,7 @@ int frontierBrdfCount(const Frontier& frontier, const FrontierOptions& options, 
 }
 
 glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const FrontierOptions& options, int n,
-                             Rng& rng, EstimateCounters& counters) {
+                             Rng& rng, PixelSampler& sampler, EstimateCounters& counters) {
   const Environment& env = scene.environment;
   if (!env.hasLight() || n <= 0) return glm::vec3(0.0f);
   // The caps are the frontier's own; the point brings bounds and geometry.
@@ -351,18 +351,24 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
   const int nb = frontierBrdfCount(frontier, options, n);
   const int nt = n - nb;
   glm::dvec3 sum(0.0);
+  // Systematic points over the table's CDF, one offset per pixel; inside
+  // its leaf each point takes the sampler's point of sample i, dimension 0.
+  // The BRDF directions are samples 0..nb-1 of dimension 1.
   const double u = rng.next();
   for (int i = 0; i < nt; ++i) {
     glm::dvec3 hp;
     double pt;
-    const uint64_t leaf = frontier.sample((double(i) + u) / nt, rng.next2(), hp, pt);
+    sampler.startSample(uint32_t(i));
+    const uint64_t leaf = frontier.sample((double(i) + u) / nt, sampler.get2D(), hp, pt);
     const glm::vec3 wi = env.fromHealpixFrame(hp);
     const double pb = nb > 0 ? double(bsdfPdf(sh.material, sh.woLocal, sh.frame.toLocal(wi))) : 0.0;
     const glm::vec3 f = sh.reflected(wi, env.radiance[leaf]);
     if (f != glm::vec3(0.0f)) sum += glm::dvec3(f) / (nt * pt + nb * pb);
   }
   for (int i = 0; i < nb; ++i) {
-    const glm::vec3 local = sampleBsdf(sh.material, sh.woLocal, rng.next3());
+    sampler.startSample(uint32_t(i));
+    sampler.setDimension(1);
+    const glm::vec3 local = sampleBsdf(sh.material, sh.woLocal, sampler.get2D());
     const double pb = bsdfPdf(sh.material, sh.woLocal, local);
     if (!(pb > 0.0)) continue;
     const glm::vec3 wi = sh.frame.toWorld(local);

@@ -110,50 +110,51 @@ glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const g
 
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
                          EstimateCounters& counters, const MethodOptions& methodOptions) {
+  PixelSampler sampler(methodOptions.sampler, rng.nextUint());
   if (methodInfo(method).family == Family::Ht) {
     uint32_t pixelSeed = rng.nextUint();
-    return estimateHt(scene, sp, htOptionsFor(method, methodOptions), spp, pixelSeed, rng, counters);
+    return estimateHt(scene, sp, htOptionsFor(method, methodOptions), spp, pixelSeed, rng, sampler, counters);
   }
-  if (method == Method::Oracle) return estimateOracle(scene, sp, spp, methodOptions.oracleOrder, rng, counters);
+  if (method == Method::Oracle) return estimateOracle(scene, sp, spp, methodOptions.oracleOrder, sampler, counters);
   if (method == Method::Wis || method == Method::WisBiased)
-    return estimateWis(scene, sp, spp, methodOptions.wisOrder, method == Method::WisBiased, rng, counters);
-  if (method == Method::Tsis) return estimateTsis(scene, sp, spp, rng, counters);
+    return estimateWis(scene, sp, spp, methodOptions.wisOrder, method == Method::WisBiased, sampler, counters);
+  if (method == Method::Tsis) return estimateTsis(scene, sp, spp, sampler, counters);
   if (method == Method::HtFrontier) {
     FrontierOptions options;
     options.refinements = methodOptions.frontierRefinements;
-    return estimateHtFrontier(scene, sp, options, spp, rng, counters);
+    return estimateHtFrontier(scene, sp, options, spp, rng, sampler, counters);
   }
-  if (method == Method::Ris) return estimateRis(scene, sp, spp, methodOptions.risCandidates, rng, counters);
+  if (method == Method::Ris) return estimateRis(scene, sp, spp, methodOptions.risCandidates, sampler, counters);
   const Shading sh(scene, sp, counters);
   const Material& mat = *sp.material;
   const Environment& env = scene.environment;
   glm::dvec3 sum(0.0);
 
   auto bsdfDirection = [&](float& pdf) {
-    const glm::vec3 u = rng.next3();
-    glm::vec3 local = sampleBsdf(mat, sh.woLocal, u);
+    glm::vec3 local = sampleBsdf(mat, sh.woLocal, sampler.get2D());
     pdf = bsdfPdf(mat, sh.woLocal, local);
     return sh.frame.toWorld(local);
   };
 
   for (int i = 0; i < spp; ++i) {
+    sampler.startSample(uint32_t(i));
     glm::vec3 est(0.0f);
     switch (method) {
       case Method::Uniform: {
-        glm::vec3 wi = sampleUniformSphere({rng.next(), rng.next()});
+        glm::vec3 wi = sampleUniformSphere(sampler.get2D());
         est = sh.reflected(wi) / uniformSpherePdf();
         ++counters.directions;
         break;
       }
       case Method::Cosine: {
-        glm::vec3 local = sampleCosineHemisphere({rng.next(), rng.next()});
+        glm::vec3 local = sampleCosineHemisphere(sampler.get2D());
         float pdf = cosineHemispherePdf(local.z);
         if (pdf > 0.0f) est = sh.reflected(sh.frame.toWorld(local)) / pdf;
         ++counters.directions;
         break;
       }
       case Method::Env: {
-        EnvSample s = sampleEnvironment(env, rng);
+        EnvSample s = sampleEnvironment(env, sampler.get2DPrecise());
         if (s.pdf > 0.0f) est = sh.reflected(s.dir, env.radiance[s.pixel]) / s.pdf;
         ++counters.directions;
         break;
@@ -166,7 +167,7 @@ glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method meth
         break;
       }
       case Method::Mis: {
-        EnvSample s = sampleEnvironment(env, rng);
+        EnvSample s = sampleEnvironment(env, sampler.get2DPrecise());
         if (s.pdf > 0.0f) {
           float pb = bsdfPdf(mat, sh.woLocal, sh.frame.toLocal(s.dir));
           est += sh.reflected(s.dir, env.radiance[s.pixel]) * (powerHeuristic(s.pdf, pb) / s.pdf);

@@ -13,6 +13,7 @@
 
 #include "ht.h"
 #include "rng.h"
+#include "sampler.h"
 #include "scene.h"
 #include "shading.h"
 
@@ -57,6 +58,7 @@ struct MethodOptions {
   int risCandidates = 32;                        // ris: candidates M per resampled sample
   int wisOrder = 5;                              // wis*: HEALPix order of the sampled product (Nside 2^order)
   int frontierRefinements = -1;                  // ht-frontier: most node splits per shading point (< 0: 16 + spp, at most 256)
+  SamplerKind sampler = SamplerKind::Stratified;  // every method: the per-pixel sample points (sampler.h)
 };
 
 // The HT traversal's options for one of the `ht*` methods.
@@ -69,9 +71,10 @@ void prepareMethod(const Scene& scene, Method method, const MethodOptions& optio
 // f(wo, wi) cos+(n, wi) V(x, wi): the integrand without the radiance.
 glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi);
 
-// Mean of `spp` independent one-sample estimates (mis: one environment and
-// one BRDF direction per sample, power heuristic); for the HT methods, one
-// traversal with `spp` expected samples.
+// Mean of `spp` one-sample estimates (mis: one environment and one BRDF
+// direction per sample, power heuristic); for the HT methods, one traversal
+// with `spp` expected samples. The pixel's sample points are seeded by the
+// first draw from rng.
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
                          EstimateCounters& counters, const MethodOptions& options = {});
 

@@ -47,6 +47,7 @@ struct RenderOptions {
   int wisOrder = 5;
   int frontierRefinements = -1;
   std::string htSequence = "sphere";
+  std::string sampler = "stratified";
   std::string maxMemory;
 };
 
@@ -221,6 +222,7 @@ int runRender(const RenderOptions& o) {
   rs.options.wisOrder = o.wisOrder;
   rs.options.frontierRefinements = o.frontierRefinements;
   rs.options.htSphereSequence = o.htSequence == "sphere";
+  rs.options.sampler = o.sampler == "independent" ? SamplerKind::Independent : SamplerKind::Stratified;
   rs.options.brdfBounds =
       o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
   // One-time tables (HEALPix geometry, BRDF tables) are built here, outside the render timing.
@@ -252,6 +254,7 @@ int runRender(const RenderOptions& o) {
       {"spp", rs.spp},
       {"brdf_bounds", o.brdfBounds},
       {"ht_sequence", o.htSequence},
+      {"sampler", o.sampler},
       {"width", rs.width},
       {"height", rs.height},
       {"seed", rs.seed},
@@ -327,6 +330,11 @@ int main(int argc, char** argv) {
   render->add_option("--out", o.out, "output EXR; the PNG preview goes next to it")->capture_default_str();
   render->add_option("--stats", o.stats, "write timings and counts as JSON");
   render->add_option("--exposure", o.exposure, "PNG preview exposure in stops")->capture_default_str();
+  render->add_option("--sampler", o.sampler,
+                     "per-pixel sample points: Owen-scrambled Sobol' (0,2)-sequences per decision (stratified) "
+                     "or i.i.d. (independent); HT's candidates keep their own sequence")
+      ->check(CLI::IsMember({"stratified", "independent"}))
+      ->capture_default_str();
   render->add_option("--brdf-bounds", o.brdfBounds, "ht*: BRDF bounds from cones (analytic) or tabulated trees (table)")
       ->check(CLI::IsMember({"analytic", "table"}))
       ->capture_default_str();

@@ -117,7 +117,7 @@ std::vector<Cap> darkCaps(const Scene& scene, const ShadingPoint& sp, const HtGe
 
 }  // namespace
 
-glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, int order, Rng& rng,
+glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, int order, PixelSampler& sampler,
                          EstimateCounters& counters) {
   const Environment& env = scene.environment;
   if (!env.hasLight()) return glm::vec3(0.0f);
@@ -146,11 +146,16 @@ glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, in
 
   glm::dvec3 result(0.0);
   for (int i = 0; i < spp; ++i) {
-    double target = double(rng.next()) * total;
+    // One point: u.x picks the table node and each child below it, rescaled
+    // inside every pick, then places the direction in the finest cell with u.y.
+    sampler.startSample(uint32_t(i));
+    const glm::dvec2 u = sampler.get2DPrecise();
+    double target = u.x * total;
     uint64_t node = uint64_t(std::upper_bound(cdf.begin() + 1, cdf.end(), target) - (cdf.begin() + 1));
     node = std::min(node, nodes - 1);
     while (cdf[node + 1] - cdf[node] <= 0.0) --node;  // never land on an empty node
     double prob = (cdf[node + 1] - cdf[node]) / total;
+    double x = std::clamp((target - cdf[node]) / (cdf[node + 1] - cdf[node]), 0.0, kBelowOneD);
     for (int level = k + 1; level <= finest; ++level) {
       std::array<Weights, 4> w;
       Weights children;
@@ -162,15 +167,15 @@ glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, in
       }
       std::array<double, 4> p;
       for (int j = 0; j < 4; ++j) p[j] = share(w[j], children);
-      double u = rng.next(), acc = 0.0;
+      double before = 0.0;
       int pick = 0;
-      while (pick < 3 && (acc += p[pick]) <= u) ++pick;
-      while (p[pick] <= 0.0) --pick;
+      while (pick < 3 && (p[pick] <= 0.0 || before + p[pick] <= x)) before += p[pick++];
+      while (p[pick] <= 0.0) before -= p[--pick];
+      x = std::clamp((x - before) / p[pick], 0.0, kBelowOneD);
       prob *= p[pick];
       node = 4 * node + uint64_t(pick);
     }
-    const glm::vec2 jitter = rng.next2();
-    glm::vec3 wi = env.direction(finest, node, jitter.x, jitter.y);
+    glm::vec3 wi = env.direction(finest, node, std::min(float(x), kBelowOneF), std::min(float(u.y), kBelowOneF));
     ++counters.directions;
     glm::vec3 fcos = evalBsdf(*sp.material, point.woLocal, frame.toLocal(wi));
     if (fcos == glm::vec3(0.0f)) continue;

@@ -11,12 +11,12 @@
 // the table must resolve the sharpest lobe (order 5 does for GGX alpha 0.02).
 #pragma once
 
-#include "rng.h"
+#include "sampler.h"
 #include "shading.h"
 
 namespace ht {
 
-glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, int order, Rng& rng,
+glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, int order, PixelSampler& sampler,
                          EstimateCounters& counters);
 
 }  // namespace ht

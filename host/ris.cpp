@@ -21,23 +21,31 @@ RisCandidate RisSampler::evaluate(const glm::vec3& dir, const glm::vec3& radianc
   return c;
 }
 
-RisCandidate RisSampler::candidate(Rng& rng) const {
-  if (rng.next() < 0.5f) {
-    const EnvSample s = sampleEnvironment(env_, rng);
+RisCandidate RisSampler::candidate(glm::dvec2 u) const {
+  if (u.x < 0.5) {
+    const EnvSample s = sampleEnvironment(env_, {std::min(2.0 * u.x, kBelowOneD), u.y});
     return evaluate(s.dir, s.pdf > 0.0f ? env_.radiance[s.pixel] : glm::vec3(0.0f), s.pdf);
   }
-  const glm::vec3 u = rng.next3();
-  const glm::vec3 dir = frame_.toWorld(sampleBsdf(material_, woLocal_, u));
+  const glm::vec2 ub(std::min(float(2.0 * u.x - 1.0), kBelowOneF), float(u.y));
+  const glm::vec3 dir = frame_.toWorld(sampleBsdf(material_, woLocal_, ub));
   return evaluate(dir, env_.eval(dir), environmentPdf(env_, dir));
 }
 
-RisSample RisSampler::sample(int candidates, Rng& rng) const {
+RisSample RisSampler::sample(int candidates, PixelSampler& sampler, uint32_t index) const {
   RisSample s;
   s.candidates = std::max(candidates, 1);
-  for (int i = 0; i < s.candidates; ++i) {
-    const RisCandidate c = candidate(rng);
+  const uint32_t m = uint32_t(s.candidates);
+  glm::vec2 draws(0.0f);
+  for (uint32_t k = 0; k < m; ++k) {
+    sampler.startSample(index * m + k);
+    const RisCandidate c = candidate(sampler.get2DPrecise());
     const double w = c.target > 0.0f && c.mixturePdf > 0.0f ? double(c.target) / double(c.mixturePdf) : 0.0;
-    const float u = rng.next();  // drawn for every candidate: a fixed number of draws per candidate
+    if (k % 2 == 0) {
+      sampler.startSample(index);
+      sampler.setDimension(1 + k / 2);
+      draws = sampler.get2D();
+    }
+    const float u = k % 2 == 0 ? draws.x : draws.y;
     if (w <= 0.0) continue;
     s.weightSum += w;
     if (double(u) * s.weightSum < w) s.chosen = c;
@@ -53,7 +61,7 @@ float RisSampler::target(const glm::vec3& dir) const {
   return luminance(env_.eval(dir) * evalBsdf(material_, woLocal_, frame_.toLocal(dir)));
 }
 
-glm::vec3 estimateRis(const Scene& scene, const ShadingPoint& sp, int spp, int candidates, Rng& rng,
+glm::vec3 estimateRis(const Scene& scene, const ShadingPoint& sp, int spp, int candidates, PixelSampler& sampler,
                       EstimateCounters& counters) {
   const Environment& env = scene.environment;
   if (!env.hasLight() || spp <= 0) return glm::vec3(0.0f);
@@ -61,7 +69,7 @@ glm::vec3 estimateRis(const Scene& scene, const ShadingPoint& sp, int spp, int c
   const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
   glm::dvec3 sum(0.0);
   for (int i = 0; i < spp; ++i) {
-    const RisSample s = ris.sample(candidates, rng);
+    const RisSample s = ris.sample(candidates, sampler, uint32_t(i));
     counters.directions += uint64_t(s.candidates);
     const double weight = s.contributionWeight();
     if (!(weight > 0.0)) continue;

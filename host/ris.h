@@ -19,7 +19,7 @@
 
 #include "environment.h"
 #include "shading.h"
-#include "rng.h"
+#include "sampler.h"
 #include "sampling.h"
 #include "scene.h"
 
@@ -47,10 +47,17 @@ class RisSampler {
  public:
   RisSampler(const Environment& env, const Material& m, const glm::vec3& normalWorld, const glm::vec3& woWorld);
 
-  // One candidate from the mixture.
-  RisCandidate candidate(Rng& rng) const;
-  // M candidates, one kept.
-  RisSample sample(int candidates, Rng& rng) const;
+  // One candidate from the mixture: u.x below 1/2 takes the environment,
+  // else the BRDF; u.x, rescaled to [0,1), and u.y drive the technique.
+  RisCandidate candidate(glm::dvec2 u) const;
+  // M candidates, one kept, for sample `index` of the pixel. Candidate k's
+  // point is dimension 0 of the sampler's sample index M + k, so the
+  // candidates of a sample form one stratified set (and those of all
+  // samples one larger set). The streaming reservoir keeps candidate k with
+  // probability w_k / sum w only if its draws are independent of each other
+  // and of the candidates: the draws of candidates 2j and 2j + 1 are the two
+  // coordinates of dimension 1 + j of sample `index`.
+  RisSample sample(int candidates, PixelSampler& sampler, uint32_t index) const;
 
   float mixturePdf(const glm::vec3& worldDir) const;
   float target(const glm::vec3& worldDir) const;
@@ -63,8 +70,8 @@ class RisSampler {
   glm::vec3 woLocal_;
 };
 
-// The `ris` estimate: `spp` independent resampled samples of M candidates.
-glm::vec3 estimateRis(const Scene& scene, const ShadingPoint& sp, int spp, int candidates, Rng& rng,
+// The `ris` estimate: `spp` resampled samples of M candidates each.
+glm::vec3 estimateRis(const Scene& scene, const ShadingPoint& sp, int spp, int candidates, PixelSampler& sampler,
                       EstimateCounters& counters);
 
 }  // namespace ht

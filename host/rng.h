@@ -38,11 +38,11 @@ struct Rng {
     const float y = next();
     return {x, y};
   }
-  glm::vec3 next3() {
-    const float x = next();
-    const float y = next();
-    const float z = next();
-    return {x, y, z};
+  // Two uniforms in [0,1) with 53 bits each, x first: i.i.d. points for
+  // the hierarchical warps (PixelSampler::get2DPrecise's counterpart).
+  glm::dvec2 next2Precise() {
+    const uint32_t xh = nextUint(), xl = nextUint(), yh = nextUint(), yl = nextUint();
+    return {(double(xh) * 0x1p21 + double(xl >> 11)) * 0x1p-53, (double(yh) * 0x1p21 + double(yl >> 11)) * 0x1p-53};
   }
 };
 

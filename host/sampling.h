@@ -12,6 +12,9 @@ namespace ht {
 
 constexpr float kPi = 3.14159265358979323846f;
 constexpr float kInvPi = 1.0f / kPi;
+// The largest values below 1: where a rescaled uniform must stay in [0,1).
+constexpr float kBelowOneF = 0x1.fffffep-1f;
+constexpr double kBelowOneD = 0x1.fffffffffffffp-1;
 
 inline float luminance(const glm::vec3& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; }
 

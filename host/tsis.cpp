@@ -204,7 +204,6 @@ int TsisPoint::regionOf(uint64_t satPixel) const {
 }
 
 TsisSample TsisPoint::warp(glm::dvec2 u) const {
-  constexpr double kBelowOne = 1.0 - 0x1p-53;
   TsisSample s{glm::vec3(0.0f, 1.0f, 0.0f), 0, -1, 0.0};
   if (empty()) return s;
   const TsisTable& t = *table_;
@@ -216,7 +215,7 @@ TsisSample TsisPoint::warp(glm::dvec2 u) const {
   while (!(regions_[ri].probability > 0.0)) --ri;  // rounding onto an empty region's edge
   const TsisRegion& r = regions_[ri];
   const double before = ri == 0 ? 0.0 : cdf_[ri - 1];
-  double x = std::clamp((target - before) / (cdf_[ri] - before), 0.0, kBelowOne);
+  double x = std::clamp((target - before) / (cdf_[ri] - before), 0.0, kBelowOneD);
   double y = u.y;
 
   // Stage 2: a column by the SAT's column sums, then a row inside it.
@@ -225,14 +224,14 @@ TsisSample TsisPoint::warp(glm::dvec2 u) const {
   uint32_t col = firstAbove(r.x0 + 1, r.x1, colCum, colTarget) - 1;
   while (col > r.x0 && !(colCum(col + 1) - colCum(col) > 0.0)) --col;
   const double c0 = colCum(col), c1 = colCum(col + 1);
-  x = c1 > c0 ? std::clamp((colTarget - c0) / (c1 - c0), 0.0, kBelowOne) : 0.5;
+  x = c1 > c0 ? std::clamp((colTarget - c0) / (c1 - c0), 0.0, kBelowOneD) : 0.5;
 
   auto rowCum = [&](uint32_t j) { return t.rect(r.face, col, r.y0, col + 1, j); };
   const double rowTarget = y * rowCum(r.y1);
   uint32_t row = firstAbove(r.y0 + 1, r.y1, rowCum, rowTarget) - 1;
   while (row > r.y0 && !(rowCum(row + 1) - rowCum(row) > 0.0)) --row;
   const double g0 = rowCum(row), g1 = rowCum(row + 1);
-  y = g1 > g0 ? std::clamp((rowTarget - g0) / (g1 - g0), 0.0, kBelowOne) : 0.5;
+  y = g1 > g0 ? std::clamp((rowTarget - g0) / (g1 - g0), 0.0, kBelowOneD) : 0.5;
 
   uint64_t node = healpix::xyfToPix(t.level, col, row, r.face);
   const float value = env_.tree.avg(t.level, node);
@@ -274,7 +273,7 @@ double TsisPoint::pdf(const glm::vec3& worldDir) const {
   return prob / env_.pixelSolidAngle();
 }
 
-glm::vec3 estimateTsis(const Scene& scene, const ShadingPoint& sp, int spp, Rng& rng, EstimateCounters& counters) {
+glm::vec3 estimateTsis(const Scene& scene, const ShadingPoint& sp, int spp, PixelSampler& sampler, EstimateCounters& counters) {
   const Environment& env = scene.environment;
   if (!env.hasLight() || spp <= 0) return glm::vec3(0.0f);
   const Material& mat = *sp.material;
@@ -283,10 +282,10 @@ glm::vec3 estimateTsis(const Scene& scene, const ShadingPoint& sp, int spp, Rng&
   const Frame frame(sp.normal);
   const glm::vec3 woLocal = frame.toLocal(sp.wo);
   const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
-  const ScrambledSobol02 points(rng);
   glm::dvec3 sum(0.0);
   for (int i = 0; i < spp; ++i) {
-    const TsisSample s = tsis.warp(points.point(uint32_t(i), rng));
+    sampler.startSample(uint32_t(i));
+    const TsisSample s = tsis.warp(sampler.get2DPrecise());
     ++counters.directions;
     if (!(s.pdf > 0.0)) continue;
     const glm::vec3 radiance = env.radiance[s.pixel];

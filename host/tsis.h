@@ -30,7 +30,7 @@
 
 #include "environment.h"
 #include "shading.h"
-#include "rng.h"
+#include "sampler.h"
 #include "scene.h"
 #include "wis.h"
 
@@ -98,8 +98,9 @@ class TsisPoint {
   double total_ = 0.0;
 };
 
-// The `tsis` estimate: `spp` points of one scrambled (0,2)-sequence warped
-// through the two stages, f / p each.
-glm::vec3 estimateTsis(const Scene& scene, const ShadingPoint& sp, int spp, Rng& rng, EstimateCounters& counters);
+// The `tsis` estimate: `spp` points, one per sample (with the stratified
+// sampler, one scrambled (0,2)-sequence), warped through the two stages,
+// f / p each.
+glm::vec3 estimateTsis(const Scene& scene, const ShadingPoint& sp, int spp, PixelSampler& sampler, EstimateCounters& counters);
 
 }  // namespace ht

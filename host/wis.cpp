@@ -12,35 +12,10 @@
 
 namespace ht {
 
-uint32_t ScrambledSobol02::reverseBits(uint32_t v) {
-  v = ((v >> 1) & 0x55555555u) | ((v & 0x55555555u) << 1);
-  v = ((v >> 2) & 0x33333333u) | ((v & 0x33333333u) << 2);
-  v = ((v >> 4) & 0x0F0F0F0Fu) | ((v & 0x0F0F0F0Fu) << 4);
-  v = ((v >> 8) & 0x00FF00FFu) | ((v & 0x00FF00FFu) << 8);
-  return (v >> 16) | (v << 16);
-}
-
-// Second Sobol' dimension: generator matrix of the primitive polynomial
-// x + 1 (Kollig & Keller, "Efficient multidimensional sampling", 2002).
-uint32_t ScrambledSobol02::sobolSecond(uint32_t i) {
-  uint32_t r = 0;
-  for (uint32_t v = 1u << 31; i; i >>= 1, v ^= v >> 1)
-    if (i & 1u) r ^= v;
-  return r;
-}
-
-glm::dvec2 ScrambledSobol02::point(uint32_t i, Rng& rng) const {
-  constexpr double kBelowOne = 1.0 - 0x1p-53;
-  double x = (double(xBits(i)) + double(rng.next())) * 0x1p-32;
-  double y = (double(yBits(i)) + double(rng.next())) * 0x1p-32;
-  return {std::min(x, kBelowOne), std::min(y, kBelowOne)};
-}
-
 bool splitUnit(double& u, double p) {
-  constexpr double kBelowOne = 1.0 - 0x1p-53;
   bool first = u < p;
   u = first ? u / p : (u - p) / (1.0 - p);
-  u = std::clamp(u, 0.0, kBelowOne);
+  u = std::clamp(u, 0.0, kBelowOneD);
   return first;
 }
 
@@ -181,7 +156,7 @@ glm::vec3 WisPoint::approximateProduct(uint64_t pixel) const {
   return average * brdf_.rgb(centers_[MaxAvgTree::levelOffset(order_) + pixel]);
 }
 
-glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int order, bool biased, Rng& rng,
+glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int order, bool biased, PixelSampler& sampler,
                       EstimateCounters& counters) {
   const Environment& env = scene.environment;
   if (!env.hasLight() || spp <= 0) return glm::vec3(0.0f);
@@ -192,10 +167,10 @@ glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int o
   const glm::vec3 woLocal = frame.toLocal(sp.wo);
   const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
   const double pixelSolidAngle = healpix::pixelSolidAngle(wis.order());
-  const ScrambledSobol02 points(rng);
   glm::dvec3 sum(0.0);
   for (int i = 0; i < spp; ++i) {
-    const WisSample s = wis.warp(points.point(uint32_t(i), rng));
+    sampler.startSample(uint32_t(i));
+    const WisSample s = wis.warp(sampler.get2DPrecise());
     ++counters.directions;
     if (!(s.probability > 0.0)) continue;
     glm::dvec3 value;

@@ -34,34 +34,11 @@
 
 #include "environment.h"
 #include "shading.h"
-#include "rng.h"
+#include "sampler.h"
 #include "sampling.h"
 #include "scene.h"
 
 namespace ht {
-
-// The first two dimensions of Sobol's sequence (a (0,2)-sequence in base 2:
-// every 2^m consecutive aligned points form a (0,m,2)-net) with a random
-// digital shift (XOR) per set, which keeps the net property and makes every
-// point uniform on [0,1)^2 on its own. Below the 32 bits of the sequence
-// each coordinate gets random low bits, so the points are continuous.
-class ScrambledSobol02 {
- public:
-  explicit ScrambledSobol02(Rng& rng) : shiftX_(rng.nextUint()), shiftY_(rng.nextUint()) {}
-  ScrambledSobol02(uint32_t shiftX, uint32_t shiftY) : shiftX_(shiftX), shiftY_(shiftY) {}
-
-  // Point i with random low bits drawn from rng.
-  glm::dvec2 point(uint32_t i, Rng& rng) const;
-  // The 32-bit integer coordinates of point i (shift applied, no low bits).
-  uint32_t xBits(uint32_t i) const { return reverseBits(i) ^ shiftX_; }
-  uint32_t yBits(uint32_t i) const { return sobolSecond(i) ^ shiftY_; }
-
-  static uint32_t reverseBits(uint32_t v);
-  static uint32_t sobolSecond(uint32_t i);
-
- private:
-  uint32_t shiftX_, shiftY_;
-};
 
 // Splits u in [0,1) at p: returns true (first part) for u < p and rescales u
 // to [0,1) inside the part taken.
@@ -133,8 +110,9 @@ class WisPoint {
 };
 
 // The `wis` (unbiased f/p) and `wis-biased` estimates with `spp` warped
-// points of one scrambled (0,2)-sequence.
-glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int order, bool biased, Rng& rng,
+// points, one per sample (with the stratified sampler, one scrambled
+// (0,2)-sequence).
+glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int order, bool biased, PixelSampler& sampler,
                       EstimateCounters& counters);
 
 }  // namespace ht

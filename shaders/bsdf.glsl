@@ -30,9 +30,12 @@ precise vec3 evalBsdf(GpuMaterial m, vec3 wo, vec3 wi) {
 }
 
 // u.x chooses the lobe, u.yz drive it.
-precise vec3 sampleBsdf(GpuMaterial m, vec3 wo, vec3 u) {
-  vec2 uv = vec2(u.y, u.z);
-  if (u.x >= m.specularProbability) return sampleCosineHemisphere(uv);
+precise vec3 sampleBsdf(GpuMaterial m, vec3 wo, vec2 u) {
+  float ps = m.specularProbability;
+  bool diffuse = u.x >= ps;
+  precise float x = diffuse ? (u.x - ps) / (1.0 - ps) : u.x / ps;
+  vec2 uv = vec2(min(x, uintBitsToFloat(0x3f7fffffu)), u.y);
+  if (diffuse) return sampleCosineHemisphere(uv);
   if (m.type == HT_MATERIAL_PHONG) return toWorld(makeFrame(mirrorDir(wo)), samplePowerCosine(uv, m.exponent));
   return reflectAbout(wo, sampleGgxVisibleNormal(wo, m.alpha, uv));
 }

@@ -46,6 +46,10 @@
 #define HT_METHOD_ANY 0xFFFFFFFFu  // render.comp.glsl's specialization constant: use GpuPush::method
 #define HT_SPEC_METHOD 0           // its constant_id
 
+// GpuPush::sampler: the values of ht::SamplerKind (host/sampler.h).
+#define HT_SAMPLER_INDEPENDENT 0
+#define HT_SAMPLER_STRATIFIED 1
+
 // tsis: regions of the per-point partition (TsisPoint::kDefaultRegions) and
 // the deepest level of its summed-area table (TsisTable::kMaxLevel).
 #define HT_TSIS_REGIONS 32
@@ -206,7 +210,8 @@ struct GpuPixelState {
   uint shadowRays;
   uint htNodes;
   uint done;        // 1: the estimate is complete
-  uvec2 shift;      // wis, tsis: the sequence's digital shift
+  uint samplerSeed; // the pixel's sample points (PixelSampler's seed)
+  uint pad;
   // ht*: where the stackless traversal stands (ht.glsl).
   uint htSeed;
   uint htFace;
@@ -265,7 +270,7 @@ struct GpuPush {
   // wis*: HT_WIS_TOP_NODES doubles per tile pixel (WisPoint's exact levels).
   HT_CHUNK_REF(WisScratch) wisScratch;
   uint wisOrder;  // wis*: requested order of the sampled product
-  uint wisReserved;
+  uint samplerKind;  // HT_SAMPLER_*
   HT_CHUNK_REF(PixelStates) pixelState;  // GpuPixelState per tile pixel
   uint batch;       // 0: the tile's first dispatch, which starts every pixel
   uint batchLimit;  // samples (ht*: traversal steps) per pixel and dispatch
@@ -293,7 +298,7 @@ static_assert(sizeof(GpuPush) == 112 && offsetof(GpuPush, seed) == 32 && offseto
               offsetof(GpuPush, wisOrder) == 80 && offsetof(GpuPush, pixelState) == 88 &&
               offsetof(GpuPush, batch) == 96 && offsetof(GpuPush, canaryLoops) == 104);
 static_assert(sizeof(GpuPixelState) == 160 && offsetof(GpuPixelState, rng) == 24 &&
-              offsetof(GpuPixelState, shift) == 48 && offsetof(GpuPixelState, htLeafH) == 68 &&
+              offsetof(GpuPixelState, samplerSeed) == 48 && offsetof(GpuPixelState, htLeafH) == 68 &&
               offsetof(GpuPixelState, htNode) == 72 && offsetof(GpuPixelState, htPathMin) == 104);
 static_assert(sizeof(GpuTsisSlot) == 56 && offsetof(GpuTsisSlot, energy) == 24 && offsetof(GpuTsisSlot, cdf) == 48);
 static_assert(offsetof(GpuPush, htFlags) == 36 && offsetof(GpuPush, htSampleLog) == 52);

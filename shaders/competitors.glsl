@@ -1,7 +1,7 @@
 // The `ris` (host/ris.cpp), `tsis` (host/tsis.cpp), `wis` and `wis-biased`
 // (host/wis.cpp) estimates, draw for draw as on the CPU. Part of
 // render.comp.glsl: included after its helpers (Shading, reflected,
-// drawBsdfU, accvec3, gShadowRays).
+// accvec3, gShadowRays).
 //
 // tsis and wis need doubles (tsis's summed-area table is one: differences
 // of a float table would lose dim pixels next to a sun; wis's tree sums
@@ -41,19 +41,27 @@ RisCandidate risEvaluate(Shading sh, vec3 dir, vec3 radiance, float envPdf) {
   return c;
 }
 
-RisCandidate risCandidate(Shading sh, inout uint rng) {
-  if (rngNext(rng) < 0.5) {
-    EnvSample s = sampleEnvironment(rng);
+// RisSampler::candidate: u.x below 1/2 takes the environment, else the BRDF.
+RisCandidate risCandidate(Shading sh, inout Sampler smp) {
+#if HT_FP64
+  dvec2 u = samplerNext2DPrecise(smp);
+#else
+  vec2 u = samplerNext2DPrecise(smp);
+#endif
+  if (u.x < 0.5) {
+    precise hreal x = hreal(2.0) * u.x;
+    EnvSample s = sampleEnvironment(min(x, kEnvBelowOne), u.y);
     return risEvaluate(sh, s.dir, s.pdf > 0.0 ? envRadiance(s.pixel) : vec3(0.0), s.pdf);
   }
-  vec3 u = drawBsdfU(rng);
-  precise vec3 dir = toWorld(sh.frame, sampleBsdf(sh.material, sh.woLocal, u));
+  precise hreal x = hreal(2.0) * u.x - hreal(1.0);
+  vec2 ub = vec2(min(float(x), uintBitsToFloat(0x3f7fffffu)), float(u.y));
+  precise vec3 dir = toWorld(sh.frame, sampleBsdf(sh.material, sh.woLocal, ub));
   return risEvaluate(sh, dir, envEval(dir), environmentPdf(dir));
 }
 
 // estimateRis, samples [begin, end): per sample, `candidates` candidates
 // streamed through a one-element reservoir, one shadow ray for the one kept.
-uint risSamples(Shading sh, uint begin, uint end, uint candidates, inout uint rng, inout accvec3 sum,
+uint risSamples(Shading sh, uint begin, uint end, uint candidates, inout Sampler smp, inout accvec3 sum,
                 inout uint directions) {
   uint m = max(candidates, 1u);
   uint i = begin;
@@ -65,10 +73,18 @@ uint risSamples(Shading sh, uint begin, uint end, uint candidates, inout uint rn
     chosen.mixturePdf = 0.0;
     chosen.target = 0.0;
     precise accreal weightSum = 0.0;
+    vec2 draws = vec2(0.0);
     for (uint k = 0u; k < m; ++k) {
-      RisCandidate c = risCandidate(sh, rng);
+      // RisSampler::sample: the point of sample i m + k, the draws of sample i.
+      samplerStart(smp, i * m + k);
+      RisCandidate c = risCandidate(sh, smp);
       precise accreal w = c.target > 0.0 && c.mixturePdf > 0.0 ? accreal(c.target) / accreal(c.mixturePdf) : 0.0;
-      float u = rngNext(rng);
+      if ((k & 1u) == 0u) {
+        samplerStart(smp, i);
+        smp.dimension = 1u + k / 2u;
+        draws = samplerNext2D(smp);
+      }
+      float u = (k & 1u) == 0u ? draws.x : draws.y;
       if (w <= 0.0) continue;
       weightSum += w;
       precise accreal scaled = accreal(u) * weightSum;
@@ -91,7 +107,6 @@ uint risSamples(Shading sh, uint begin, uint end, uint candidates, inout uint rn
 #if HT_FP64
 
 #define kBelowOneD packDouble2x32(uvec2(0xFFFFFFFFu, 0x3FEFFFFFu))  // 1 - 2^-53
-#define kTwoPowMinus32D packDouble2x32(uvec2(0u, 0x3DF00000u))
 
 // HealpixFrameBrdf: f cos for directions in the HEALPix frame.
 struct HpBrdf {
@@ -363,24 +378,7 @@ double tsisWarp(double ux, double uy, out uint pixel, out vec3 dir) {
   return divD(prob, envPixelSolidAngle());
 }
 
-uint sobolSecond(uint i) {
-  uint r = 0u;
-  for (uint v = 1u << 31; i != 0u; i >>= 1, v ^= v >> 1)
-    if ((i & 1u) != 0u) r ^= v;
-  return r;
-}
-
-// ScrambledSobol02::point: point i of the digitally shifted (0,2)-sequence
-// with random low bits, kept below 1.
-precise dvec2 scrambledSobol(uint i, uvec2 shift, inout uint rng) {
-  float jx = rngNext(rng);
-  float jy = rngNext(rng);
-  precise double ux = (double(bitfieldReverse(i) ^ shift.x) + double(jx)) * kTwoPowMinus32D;
-  precise double uy = (double(sobolSecond(i) ^ shift.y) + double(jy)) * kTwoPowMinus32D;
-  return dvec2(min(ux, kBelowOneD), min(uy, kBelowOneD));
-}
-
-// estimateTsis: `spp` points of one scrambled (0,2)-sequence through the
+// estimateTsis: `spp` points of the sampler through the
 // two stages. tsisPrepare partitions the sphere (every dispatch: it draws
 // nothing); false when there is nothing to sample.
 bool tsisPrepare(Shading sh, vec3 normal, vec3 wo) {
@@ -389,12 +387,13 @@ bool tsisPrepare(Shading sh, vec3 normal, vec3 wo) {
   tsisPartition(normal, wo, sh.material);
   return gTsisTotal > 0.0;
 }
-// Samples [begin, end) of the sequence with this shift.
-uint tsisSamples(Shading sh, uint begin, uint end, uvec2 shift, inout uint rng, inout dvec3 sum,
+// Samples [begin, end).
+uint tsisSamples(Shading sh, uint begin, uint end, inout Sampler smp, inout dvec3 sum,
                  inout uint directions) {
   uint i = begin;
   for (; i < end; ++i) {
-    precise dvec2 u = scrambledSobol(i, shift, rng);
+    samplerStart(smp, i);
+    dvec2 u = samplerNext2DPrecise(smp);
     uint pixel;
     vec3 dir;
     double pdf = tsisWarp(u.x, u.y, pixel, dir);
@@ -506,7 +505,7 @@ vec3 wisApproximateProduct(GpuMaterial m, uint pixel) {
   return product;
 }
 
-// estimateWis: `spp` points of one scrambled (0,2)-sequence warped down the
+// estimateWis: `spp` points of the sampler warped down the
 // product tree; wis-biased returns the approximated product instead of f.
 // wisPrepare builds the tree (every dispatch: it draws nothing); false when
 // there is nothing to sample.
@@ -516,13 +515,14 @@ bool wisPrepare(Shading sh, vec3 normal, vec3 wo) {
   wisBuild(normal, wo, sh.material);
   return gWisTotal > 0.0;
 }
-// Samples [begin, end) of the sequence with this shift.
-uint wisSamples(Shading sh, uint begin, uint end, uvec2 shift, bool biased, inout uint rng, inout dvec3 sum,
+// Samples [begin, end).
+uint wisSamples(Shading sh, uint begin, uint end, inout Sampler smp, bool biased, inout dvec3 sum,
                 inout uint directions) {
   double pixelSolidAngle = wisPixelSolidAngle(gWisOrder);
   uint i = begin;
   for (; i < end; ++i) {
-    precise dvec2 u = scrambledSobol(i, shift, rng);
+    samplerStart(smp, i);
+    dvec2 u = samplerNext2DPrecise(smp);
     uint pixel;
     double probability;
     vec3 dir;
@@ -553,12 +553,12 @@ uint wisSamples(Shading sh, uint begin, uint end, uvec2 shift, bool biased, inou
 
 #else
 bool wisPrepare(Shading sh, vec3 normal, vec3 wo) { return false; }
-uint wisSamples(Shading sh, uint begin, uint end, uvec2 shift, bool biased, inout uint rng, inout accvec3 sum,
+uint wisSamples(Shading sh, uint begin, uint end, inout Sampler smp, bool biased, inout accvec3 sum,
                 inout uint directions) {
   return end - begin;
 }
 bool tsisPrepare(Shading sh, vec3 normal, vec3 wo) { return false; }
-uint tsisSamples(Shading sh, uint begin, uint end, uvec2 shift, inout uint rng, inout accvec3 sum,
+uint tsisSamples(Shading sh, uint begin, uint end, inout Sampler smp, inout accvec3 sum,
                  inout uint directions) {
   return end - begin;
 }

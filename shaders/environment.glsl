@@ -5,7 +5,6 @@
 
 #include "bindings.glsl"
 #include "healpix.glsl"
-#include "rng.glsl"
 
 vec3 envRadiance(uint pixel) {
   return scene.radiance[pixel >> HT_RADIANCE_CHUNK_SHIFT].v[pixel & ((1u << HT_RADIANCE_CHUNK_SHIFT) - 1u)];
@@ -42,22 +41,34 @@ uint envPixelOf(vec3 worldDir) { return vecToPix(scene.envOrder, toHealpixFrame(
 vec3 envEval(vec3 worldDir) { return envRadiance(envPixelOf(worldDir)); }
 vec3 envDirection(uint level, uint pix, float dx, float dy) { return fromHealpixFrame(pixToVec(level, pix, dx, dy)); }
 
-// pickWeighted<n> over the average tree's nodes first..first+n-1.
-uint pickWeighted(uint first, uint n, float u, out float prob) {
+#if HT_FP64
+#define kEnvBelowOne packDouble2x32(uvec2(0xFFFFFFFFu, 0x3FEFFFFFu))  // 1 - 2^-53
+#else
+#define kEnvBelowOne uintBitsToFloat(0x3f7fffffu)
+#endif
+
+// pickRescaled<n> (host/env_sampler.cpp) over the average tree's nodes
+// first..first+n-1.
+uint pickRescaled(uint first, uint n, inout hreal u, out float prob) {
   precise float sum = 0.0;
   for (uint i = 0u; i < n; ++i) sum += treeAvg(first + i);
-  precise float target = u * sum;
+  precise hreal target = u * hreal(sum);
   uint last = 0u;
-  precise float acc = 0.0;
+  precise hreal before = 0.0;
+  precise hreal acc = 0.0;
   for (uint i = 0u; i < n; ++i) {
     float w = treeAvg(first + i);
     if (w <= 0.0) continue;
     last = i;
-    acc += w;
+    before = acc;
+    acc += hreal(w);
     if (target < acc) break;
   }
-  precise float p = treeAvg(first + last) / sum;
+  float w = treeAvg(first + last);
+  precise float p = w / sum;
   prob = p;
+  precise hreal v = (target - before) / hreal(w);
+  u = clamp(v, hreal(0.0), kEnvBelowOne);
   return last;
 }
 
@@ -67,7 +78,7 @@ struct EnvSample {
   float pdf;  // solid-angle density
 };
 
-EnvSample sampleEnvironment(inout uint rng) {
+EnvSample sampleEnvironment(hreal ux, hreal uy) {
   EnvSample s;
   if (scene.envHasLight == 0u) {
     s.dir = vec3(0.0, 1.0, 0.0);
@@ -75,18 +86,18 @@ EnvSample sampleEnvironment(inout uint rng) {
     s.pdf = 0.0;
     return s;
   }
+  hreal x = ux;
   float prob;
-  uint node = pickWeighted(0u, 12u, rngNext(rng), prob);
+  uint node = pickRescaled(0u, 12u, x, prob);
   precise hreal p = hreal(prob);
   for (uint level = 1u; level <= scene.envOrder; ++level) {
     uint first = 4u * node;
-    node = first + pickWeighted(levelOffset(level) + first, 4u, rngNext(rng), prob);
+    node = first + pickRescaled(levelOffset(level) + first, 4u, x, prob);
     p *= hreal(prob);
   }
-  float dx = rngNext(rng);
-  float dy = rngNext(rng);
+  const float kBelowOneF = uintBitsToFloat(0x3f7fffffu);
   s.pixel = node;
-  s.dir = envDirection(scene.envOrder, node, dx, dy);
+  s.dir = envDirection(scene.envOrder, node, min(float(x), kBelowOneF), min(float(uy), kBelowOneF));
   precise hreal pdf = p / envPixelSolidAngle();
   s.pdf = float(pdf);
   return s;

@@ -19,6 +19,7 @@
 #include "bindings.glsl"
 #include "bsdf.glsl"
 #include "environment.glsl"
+#include "sampler.glsl"
 #include "scene.glsl"
 
 #define HT_MAX_FRONTIER (12 + 3 * HT_MAX_BUDGET_REFINEMENTS)
@@ -396,7 +397,7 @@ bool htBegin(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout ui
 
 // At most `steps` steps of the walk; true once it has visited every face.
 // `taken`: the steps it took.
-bool htSteps(Shading sh, inout HtWalk w, uint steps, inout uint rng, out uint taken) {
+bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint taken) {
   const bool biased = (ht.flags & HT_FLAG_BIASED) != 0u;
   const bool visibility = (ht.flags & HT_FLAG_VISIBILITY) != 0u;
   const uint64_t faceDigits = htFaceDigits(w.seed);
@@ -493,11 +494,11 @@ bool htSteps(Shading sh, inout HtWalk w, uint steps, inout uint rng, out uint ta
       for (;;) {
         precise hreal iu = i + ht.u;
         if (!(iu < acceptT)) break;
-        // visitVirtual and stopEarly draw dx, then dy.
-        float jx = rngNext(rng);
-        float jy = rngNext(rng);
-        precise hreal dx = (sx + hreal(jx)) / cells;
-        precise hreal dy = (sy + hreal(jy)) / cells;
+        // Sample k's point inside its cell: sample index k, dimension 0.
+        samplerStart(smp, gHtSamples);
+        vec2 j = samplerNext2D(smp);
+        precise hreal dx = (sx + hreal(j.x)) / cells;
+        precise hreal dy = (sy + hreal(j.y)) / cells;
         hvec3 hp = pixToVecAt(cellOrder, cellPix, dx, dy);
         uint pixel = averaged ? vecToPix(ht.order, hp) : cellPix;
         htAccept(sh, fromHealpixFrame(hp), pixel, sampleH, uint64_t(i), level, averaged, brdfDir);

@@ -13,6 +13,7 @@
 #include "bindings.glsl"
 #include "bsdf.glsl"
 #include "environment.glsl"
+#include "sampler.glsl"
 #include "scene.glsl"
 
 layout(local_size_x = HT_WORKGROUP_SIZE, local_size_y = HT_WORKGROUP_SIZE) in;
@@ -45,19 +46,19 @@ precise float powerHeuristic(float a, float b) {
   return a2 / (a2 + b2);
 }
 
-// Rng::next3: x first.
-vec3 drawBsdfU(inout uint rng) {
-  float x = rngNext(rng);
-  float y = rngNext(rng);
-  float z = rngNext(rng);
-  return vec3(x, y, z);
-}
-
-precise vec3 bsdfDirection(Shading sh, inout uint rng, out float pdf) {
-  vec3 u = drawBsdfU(rng);
-  precise vec3 local = sampleBsdf(sh.material, sh.woLocal, u);
+precise vec3 bsdfDirection(Shading sh, inout Sampler smp, out float pdf) {
+  precise vec3 local = sampleBsdf(sh.material, sh.woLocal, samplerNext2D(smp));
   pdf = bsdfPdf(sh.material, sh.woLocal, local);
   return toWorld(sh.frame, local);
+}
+
+EnvSample sampleEnvironmentAt(inout Sampler smp) {
+#if HT_FP64
+  dvec2 u = samplerNext2DPrecise(smp);
+#else
+  vec2 u = samplerNext2DPrecise(smp);
+#endif
+  return sampleEnvironment(u.x, u.y);
 }
 
 #if HT_FP64
@@ -70,21 +71,18 @@ precise vec3 bsdfDirection(Shading sh, inout uint rng, out float pdf) {
 #include "ht.glsl"
 
 // estimateDirect for the baseline methods, samples [begin, end).
-uint baselineSamples(Shading sh, uint method, uint begin, uint end, inout uint rng, inout accvec3 sum,
+uint baselineSamples(Shading sh, uint method, uint begin, uint end, inout Sampler smp, inout accvec3 sum,
                      inout uint directions) {
   uint i = begin;
   for (; i < end; ++i) {
+    samplerStart(smp, i);
     precise vec3 est = vec3(0.0);
     if (method == HT_METHOD_UNIFORM) {
-      float u0 = rngNext(rng);
-      float u1 = rngNext(rng);
-      vec3 wi = sampleUniformSphere(vec2(u0, u1));
+      vec3 wi = sampleUniformSphere(samplerNext2D(smp));
       est = reflected(sh, wi, envEval(wi)) / uniformSpherePdf();
       directions += 1u;
     } else if (method == HT_METHOD_COSINE) {
-      float u0 = rngNext(rng);
-      float u1 = rngNext(rng);
-      vec3 local = sampleCosineHemisphere(vec2(u0, u1));
+      vec3 local = sampleCosineHemisphere(samplerNext2D(smp));
       float pdf = cosineHemispherePdf(local.z);
       if (pdf > 0.0) {
         vec3 wi = toWorld(sh.frame, local);
@@ -92,22 +90,22 @@ uint baselineSamples(Shading sh, uint method, uint begin, uint end, inout uint r
       }
       directions += 1u;
     } else if (method == HT_METHOD_ENV) {
-      EnvSample s = sampleEnvironment(rng);
+      EnvSample s = sampleEnvironmentAt(smp);
       if (s.pdf > 0.0) est = reflected(sh, s.dir, envRadiance(s.pixel)) / s.pdf;
       directions += 1u;
     } else if (method == HT_METHOD_BRDF) {
       float pdf;
-      vec3 wi = bsdfDirection(sh, rng, pdf);
+      vec3 wi = bsdfDirection(sh, smp, pdf);
       if (pdf > 0.0) est = reflected(sh, wi, envEval(wi)) / pdf;
       directions += 1u;
     } else if (method == HT_METHOD_MIS) {
-      EnvSample s = sampleEnvironment(rng);
+      EnvSample s = sampleEnvironmentAt(smp);
       if (s.pdf > 0.0) {
         float pb = bsdfPdf(sh.material, sh.woLocal, toLocal(sh.frame, s.dir));
         est += reflected(sh, s.dir, envRadiance(s.pixel)) * (powerHeuristic(s.pdf, pb) / s.pdf);
       }
       float pb;
-      vec3 wi = bsdfDirection(sh, rng, pb);
+      vec3 wi = bsdfDirection(sh, smp, pb);
       if (pb > 0.0) {
         float pe = environmentPdf(wi);
         est += reflected(sh, wi, envEval(wi)) * (powerHeuristic(pb, pe) / pb);
@@ -163,6 +161,7 @@ HtWalk loadWalk(GpuPixelState st) {
 // samples. Leaves st.done = 1 when there is nothing to sample.
 void beginPixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 normal, vec3 wo, uint method) {
   uint rng = st.rng;
+  st.samplerSeed = rngNextUint(rng);
   if (isHtMethod(method)) {
     HtWalk w;
     bool work = htBegin(sh, position, normal, wo, pc.spp, rng, w);
@@ -175,10 +174,6 @@ void beginPixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 normal, 
   } else if (method == HT_METHOD_TSIS || isWisMethod(method)) {
     bool work = method == HT_METHOD_TSIS ? tsisPrepare(sh, normal, wo) : wisPrepare(sh, normal, wo);
     st.done = work ? 0u : 1u;
-    if (work) {
-      st.shift.x = rngNextUint(rng);
-      st.shift.y = rngNextUint(rng);
-    }
   }
   st.rng = rng;
 }
@@ -187,7 +182,7 @@ void beginPixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 normal, 
 // False when its loop stopped before it should have (the driver's limit).
 bool continuePixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 normal, vec3 wo, uint method,
                    bool prepared) {
-  uint rng = st.rng;
+  Sampler smp = samplerInit(pc.samplerKind, st.samplerSeed);
   uint directions = st.directions;
   accvec3 sum = sumFromBits(st.sum);
   bool complete = true;
@@ -202,7 +197,7 @@ bool continuePixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 norma
     gHtSum = sum;
     gHtSamples = directions;
     uint taken;
-    bool finished = htSteps(sh, w, pc.batchLimit, rng, taken);
+    bool finished = htSteps(sh, w, pc.batchLimit, smp, taken);
     complete = finished || taken == pc.batchLimit;
     sum = gHtSum;
     directions = gHtSamples;
@@ -214,20 +209,19 @@ bool continuePixel(inout GpuPixelState st, Shading sh, vec3 position, vec3 norma
     uint end = min(pc.spp, begin + pc.batchLimit);
     uint done = end - begin;
     if (method == HT_METHOD_RIS) {
-      done = risSamples(sh, begin, end, pc.risCandidates, rng, sum, directions);
+      done = risSamples(sh, begin, end, pc.risCandidates, smp, sum, directions);
     } else if (method == HT_METHOD_TSIS) {
-      if (prepared || tsisPrepare(sh, normal, wo)) done = tsisSamples(sh, begin, end, st.shift, rng, sum, directions);
+      if (prepared || tsisPrepare(sh, normal, wo)) done = tsisSamples(sh, begin, end, smp, sum, directions);
     } else if (isWisMethod(method)) {
       if (prepared || wisPrepare(sh, normal, wo))
-        done = wisSamples(sh, begin, end, st.shift, method == HT_METHOD_WIS_BIASED, rng, sum, directions);
+        done = wisSamples(sh, begin, end, smp, method == HT_METHOD_WIS_BIASED, sum, directions);
     } else {
-      done = baselineSamples(sh, method, begin, end, rng, sum, directions);
+      done = baselineSamples(sh, method, begin, end, smp, sum, directions);
     }
     complete = done == end - begin;
     st.next = end;
     st.done = end >= pc.spp ? 1u : 0u;
   }
-  st.rng = rng;
   st.directions = directions;
   sumToBits(sum, st.sum);
   return complete;
@@ -290,7 +284,8 @@ void main() {
       st.shadowRays = 0u;
       st.htNodes = 0u;
       st.done = 0u;
-      st.shift = uvec2(0u);
+      st.samplerSeed = 0u;
+      st.pad = 0u;
       sumToBits(accvec3(0.0), st.sum);
       for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) st.htPathMin[l] = 0.0;
       beginPixel(st, sh, hit.position, hit.normal, wo, method);

@@ -41,7 +41,12 @@ expect_render_error() {
 }
 
 "$bin" --help >"$tmp/help" 2>&1 && grep -q render "$tmp/help" && ok || fail "--help"
-"$bin" render --help >"$tmp/help" 2>&1 && grep -q -- "--method" "$tmp/help" && ok || fail "render --help"
+"$bin" render --help >"$tmp/help" 2>&1 && grep -q -- "--method" "$tmp/help" && grep -q -- "--sampler" "$tmp/help" && ok ||
+  fail "render --help"
+expect_error "--sampler" render --scene "$data/scenes/furnace.json" --device cpu --sampler sobol --out "$tmp/s.exr"
+"$bin" render --scene "$data/scenes/furnace.json" --method mis --spp 4 --width 16 --height 8 --device cpu \
+  --sampler independent --out "$tmp/iid.exr" --stats "$tmp/iid.json" -q &&
+  grep -q '"sampler": "independent"' "$tmp/iid.json" && ok || fail "--sampler independent in the stats"
 "$bin" methods >"$tmp/methods" && [ "$(wc -l <"$tmp/methods")" -ge 5 ] && ok || fail "methods"
 
 for m in uniform cosine env brdf mis; do
@@ -55,7 +60,7 @@ s = json.load(open(sys.argv[1]))
 assert s["method"] == sys.argv[2] and s["spp"] == 2 and s["width"] == 32, s
 assert s["mean_samples_per_pixel"] == (4 if sys.argv[2] == "mis" else 2), s
 assert all(k in s["seconds"] for k in ("parse", "environment", "render", "write")), s
-assert s["device"]["type"] == "cpu"
+assert s["device"]["type"] == "cpu" and s["sampler"] == "stratified"
 PY
   else
     fail "render $m"

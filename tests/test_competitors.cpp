@@ -117,33 +117,6 @@ glm::vec3 viewAt(const glm::vec3& n, float thetaDeg) {
 
 }  // namespace
 
-// Deterministic: the first 2^m points of the scrambled sequence are a
-// (0,m,2)-net (one point in every dyadic box of area 2^-m), whatever the shift.
-TEST(Competitors, SobolPointsAreNets) {
-  for (uint32_t shift : {0u, 0x9e3779b9u, 0x7f4a7c15u}) {
-    ScrambledSobol02 seq(shift, ~shift * 2654435761u);
-    for (int m = 0; m <= 10; ++m) {
-      for (int bx = 0; bx <= m; ++bx) {
-        const int by = m - bx;
-        std::vector<int> hits(size_t(1) << m, 0);
-        for (uint32_t i = 0; i < (1u << m); ++i) {
-          const uint32_t cx = bx == 0 ? 0 : seq.xBits(i) >> (32 - bx);
-          const uint32_t cy = by == 0 ? 0 : seq.yBits(i) >> (32 - by);
-          ++hits[(cy << bx) | cx];
-        }
-        EXPECT_EQ(*std::min_element(hits.begin(), hits.end()), 1) << "m " << m << " box " << bx << "x" << by;
-      }
-    }
-  }
-  // And continuous points stay inside [0,1)^2.
-  Rng rng(3, 0);
-  ScrambledSobol02 seq(rng);
-  for (uint32_t i = 0; i < 10000; ++i) {
-    glm::dvec2 u = seq.point(i, rng);
-    ASSERT_TRUE(u.x >= 0.0 && u.x < 1.0 && u.y >= 0.0 && u.y < 1.0);
-  }
-}
-
 // Warped directions follow the density each sampler reports for any
 // direction, for single uniform points and for the stratified point sets the
 // estimators use (those only make the counts less dispersed).
@@ -162,11 +135,12 @@ TEST(Competitors, ChiSquareAgainstOwnPdf) {
     std::function<glm::vec3(Rng&)> sample = [p](Rng& rng) {
       return p->warp({double(rng.next()) + 0x1p-24 * rng.next(), double(rng.next()) + 0x1p-24 * rng.next()}).dir;
     };
-    if (sets > 1) {  // `sets` points per scrambled sequence, consecutive draws share it
-      auto state = std::make_shared<std::pair<int, ScrambledSobol02>>(0, ScrambledSobol02(0u, 0u));
+    if (sets > 1) {  // `sets` points of one pixel's stratified sampler, consecutive draws share it
+      auto state = std::make_shared<std::pair<int, PixelSampler>>(0, PixelSampler(SamplerKind::Stratified, 0u));
       sample = [p, state, sets](Rng& rng) {
-        if (state->first % sets == 0) state->second = ScrambledSobol02(rng);
-        return p->warp(state->second.point(uint32_t(state->first++ % sets), rng)).dir;
+        if (state->first % sets == 0) state->second = PixelSampler(SamplerKind::Stratified, rng.nextUint());
+        state->second.startSample(uint32_t(state->first++ % sets));
+        return p->warp(state->second.get2DPrecise()).dir;
       };
     }
     cases.push_back({std::move(name), sample, [p](glm::vec3 d) { return p->pdf(d); }, &env, env.order, 2, count});
@@ -183,10 +157,11 @@ TEST(Competitors, ChiSquareAgainstOwnPdf) {
       return p->warp({double(rng.next()) + 0x1p-24 * rng.next(), double(rng.next()) + 0x1p-24 * rng.next()}).dir;
     };
     if (sets > 1) {
-      auto state = std::make_shared<std::pair<int, ScrambledSobol02>>(0, ScrambledSobol02(0u, 0u));
+      auto state = std::make_shared<std::pair<int, PixelSampler>>(0, PixelSampler(SamplerKind::Stratified, 0u));
       sample = [p, state, sets](Rng& rng) {
-        if (state->first % sets == 0) state->second = ScrambledSobol02(rng);
-        return p->warp(state->second.point(uint32_t(state->first++ % sets), rng)).dir;
+        if (state->first % sets == 0) state->second = PixelSampler(SamplerKind::Stratified, rng.nextUint());
+        state->second.startSample(uint32_t(state->first++ % sets));
+        return p->warp(state->second.get2DPrecise()).dir;
       };
     }
     // The density is constant on the pixels of the WIS order: bins one level finer.
@@ -202,7 +177,7 @@ TEST(Competitors, ChiSquareAgainstOwnPdf) {
   // candidate, RIS keeps it: RisWithOneCandidateIsTheMixture).
   auto ris = [&](std::string name, const Environment& env, const Material& m, float view) {
     auto p = std::make_shared<RisSampler>(env, m, n, viewAt(n, view));
-    cases.push_back({std::move(name), [p](Rng& rng) { return p->candidate(rng).dir; },
+    cases.push_back({std::move(name), [p](Rng& rng) { return p->candidate(rng.next2Precise()).dir; },
                      [p](glm::vec3 d) { return double(p->mixturePdf(d)); }, &env, 5, 12, 500000});
   };
   ris("ris-m1-ggx-sunrise", sunrise(), gloss, 40);
@@ -220,9 +195,10 @@ TEST(Competitors, RisWithOneCandidateIsTheMixture) {
   RisSampler ris(sunrise(), gloss, n, viewAt(n, 60));
   int kept = 0;
   for (uint32_t i = 0; i < 20000; ++i) {
-    Rng a(8, i), b(8, i);
-    const RisCandidate c = ris.candidate(a);
-    const RisSample s = ris.sample(1, b);
+    PixelSampler a(SamplerKind::Independent, 8), b(SamplerKind::Independent, 8);
+    a.startSample(i);
+    const RisCandidate c = ris.candidate(a.get2DPrecise());
+    const RisSample s = ris.sample(1, b, i);
     if (c.target > 0.0f) {
       ++kept;
       ASSERT_EQ(s.chosen.dir, c.dir);
@@ -344,20 +320,24 @@ TEST(Competitors, UnbiasedAgainstBruteForce) {
 }
 
 // wis-biased converges as the WIS order rises: its error against the brute
-// force falls from order to order, by more than the noise.
+// force falls from order to order (a one-sided z-test per step, Sidak over
+// the four steps). The step from order 3 to 4 is small here (about 5.4 % to
+// 4.7 %), hence the many estimates.
 TEST(Competitors, WisBiasedErrorFallsWithOrder) {
   const ShadingSetup s = makeSetup("ggx0.2-sunrise", sunrise(), ggx(0.2f, glm::vec3(0.9f, 0.7f, 0.4f)),
                                    {0.2f, 0.5f, -0.8f}, {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}});
   const Reference& ref = reference(s);
+  const double zCrit = normalQuantileTwoSided(2.0 * (1.0 - std::pow(1.0 - 0.01, 1.0 / 4.0)));  // one-sided
   double previous = INFINITY, previousSe = 0.0;
   for (int order : {1, 2, 3, 4, 5}) {
     MethodOptions o;
     o.wisOrder = order;
-    MeanAndError e = repeatedEstimates(s, Method::WisBiased, 3000, 16, 9, o);
+    MeanAndError e = repeatedEstimates(s, Method::WisBiased, 20000, 16, 9, o);
     const double err = std::abs(e.mean.g - ref.value.g) / ref.value.g;
     const double se = (e.stdError.g + ref.error.g) / ref.value.g;
     std::printf("wis-biased order %d: relative error %.4f (+- %.4f)\n", order, err, se);
-    EXPECT_LT(err + 3.0 * se, previous - 3.0 * previousSe) << "order " << order;
+    if (order > 1)
+      EXPECT_GT((previous - err) / std::sqrt(se * se + previousSe * previousSe), zCrit) << "order " << order;
     previous = err;
     previousSe = se;
   }
@@ -381,10 +361,10 @@ TEST(Competitors, RisApproachesTargetAsCandidatesGrow) {
   for (double& t : target) t /= norm;
   auto divergence = [&](int candidates, int samples) {
     std::vector<double> hist(target.size(), 0.0);
-    Rng rng(21, uint32_t(candidates));
+    PixelSampler sampler(SamplerKind::Independent, 21 + uint32_t(candidates));
     int kept = 0;
     for (int i = 0; i < samples; ++i) {
-      RisSample s = ris.sample(candidates, rng);
+      RisSample s = ris.sample(candidates, sampler, uint32_t(i));
       if (!(s.contributionWeight() > 0.0)) continue;
       ++kept;
       hist[binIndex(kBinOrder, env.toHealpixFrame(s.chosen.dir))] += 1.0;

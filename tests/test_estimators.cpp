@@ -133,11 +133,15 @@ TEST(Estimators, OracleUnbiased) {
   for (const ShadingSetup& s : setups) {
     glm::dvec3 ref = bruteForceIntegral(s, 16);
     glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, 8));
-    MeanAndError oracle = repeatedEstimates(s, Method::Oracle, 3000, 4, 31, options);
-    for (int c = 0; c < 3; ++c) {
-      double se = std::sqrt(oracle.stdError[c] * oracle.stdError[c] + refError[c] * refError[c]);
-      EXPECT_LT(std::abs(oracle.mean[c] - ref[c]) / se, zCrit) << s.name << " channel " << c << ": " << oracle.mean[c]
-                                                              << " against " << ref[c];
+    for (SamplerKind kind : {SamplerKind::Stratified, SamplerKind::Independent}) {
+      options.sampler = kind;
+      MeanAndError oracle = repeatedEstimates(s, Method::Oracle, 3000, 4, 31, options);
+      for (int c = 0; c < 3; ++c) {
+        double se = std::sqrt(oracle.stdError[c] * oracle.stdError[c] + refError[c] * refError[c]);
+        EXPECT_LT(std::abs(oracle.mean[c] - ref[c]) / se, zCrit)
+            << s.name << " channel " << c << " sampler " << int(kind) << ": " << oracle.mean[c] << " against " << ref[c]
+            << " (se " << se << ")";
+      }
     }
   }
 }

@@ -85,7 +85,8 @@ TEST(Ht, TraversalAcceptsExactlyTheFullScan) {
             float u = rng.next();
             std::vector<HtSample> samples;
             HtCounters counters;
-            ht.traverse(seed, u, rng, samples, counters);
+            PixelSampler jitter(SamplerKind::Stratified, rng.nextUint());
+            ht.traverse(seed, u, jitter, samples, counters);
             std::map<uint64_t, std::multiset<uint64_t>> got;
             for (const HtSample& x : samples) got[x.pixel].insert(x.candidate);
             auto want = fullScan(ht, seed, u);
@@ -125,7 +126,10 @@ TEST(Ht, DensityIsProportionalToH) {
         Rng rng(1000 + run, 5);
         samples.clear();
         HtCounters counters;
-        ht.traverse(rng.nextUint(), rng.next(), rng, samples, counters);
+        const uint32_t seed = rng.nextUint();
+        const float u = rng.next();
+        PixelSampler jitter(SamplerKind::Stratified, rng.nextUint());
+        ht.traverse(seed, u, jitter, samples, counters);
         for (const HtSample& x : samples) ++observed[binIndex(binOrder, s.scene.environment.toHealpixFrame(x.dir))];
       }
       Chi2Result r = chi2Test(observed, expected);
@@ -157,7 +161,10 @@ TEST(Ht, ExpectedSampleCount) {
           Rng rng(run, 9);
           samples.clear();
           HtCounters counters;
-          ht.traverse(rng.nextUint(), rng.next(), rng, samples, counters);
+          const uint32_t seed = rng.nextUint();
+          const float u = rng.next();
+          PixelSampler jitter(SamplerKind::Stratified, rng.nextUint());
+          ht.traverse(seed, u, jitter, samples, counters);
           sum += double(samples.size());
           sumSq += double(samples.size()) * double(samples.size());
         }
@@ -265,8 +272,9 @@ TEST(Ht, VisibilityCapsIgnoreRoundingAcrossTheOwnSurface) {
     s.sp.position.y = dy;
     s.sp.material = &s.scene.materials[0];
     Rng rng(5, 1);
+    PixelSampler sampler(SamplerKind::Stratified, 5);
     EstimateCounters counters;
-    glm::vec3 e = estimateHt(s.scene, s.sp, optionsFor(true), 64, 77, rng, counters);
+    glm::vec3 e = estimateHt(s.scene, s.sp, optionsFor(true), 64, 77, rng, sampler, counters);
     EXPECT_NEAR(e.g, 0.8f, 0.1f) << "plane, dy = " << dy;
   }
   // A point on a sphere's top, rounded into it.
@@ -276,8 +284,9 @@ TEST(Ht, VisibilityCapsIgnoreRoundingAcrossTheOwnSurface) {
   s.sp.position = glm::vec3(0.0f, 2.0f - 1e-6f, 0.0f);
   s.sp.material = &s.scene.materials[0];
   Rng rng(6, 1);
+  PixelSampler sampler(SamplerKind::Stratified, 6);
   EstimateCounters counters;
-  glm::vec3 e = estimateHt(s.scene, s.sp, optionsFor(true), 64, 78, rng, counters);
+  glm::vec3 e = estimateHt(s.scene, s.sp, optionsFor(true), 64, 78, rng, sampler, counters);
   EXPECT_NEAR(e.g, 0.8f, 0.1f) << "sphere";
 }
 
@@ -360,7 +369,10 @@ TEST(HtSlow, BiasedConvergesToUnbiased) {
           Rng rng(run, 3);
           samples.clear();
           HtCounters counters;
-          ht.traverse(rng.nextUint(), rng.next(), rng, samples, counters);
+          const uint32_t seed = rng.nextUint();
+          const float u = rng.next();
+          PixelSampler jitter(SamplerKind::Stratified, rng.nextUint());
+          ht.traverse(seed, u, jitter, samples, counters);
           for (const HtSample& x : samples) averaged += x.averaged;
           total += samples.size();
         }

@@ -32,7 +32,7 @@ glm::vec3 dirFromAngle(float thetaDeg) {
 Case bsdfCase(std::string name, Material m, float thetaDeg) {
   glm::vec3 wo = dirFromAngle(thetaDeg);
   return {std::move(name),
-          [m, wo](Rng& rng) { return glm::dvec3(sampleBsdf(m, wo, {rng.next(), rng.next(), rng.next()})); },
+          [m, wo](Rng& rng) { return glm::dvec3(sampleBsdf(m, wo, rng.next2())); },
           [m, wo](glm::dvec3 d) { return double(bsdfPdf(m, wo, glm::vec3(d))); }, 5};
 }
 
@@ -67,7 +67,7 @@ const Environment& sunAndSky() {
 
 // Bins are the environment's own pixels: the density is constant on each.
 Case envCase(std::string name, const Environment& env) {
-  return {std::move(name), [&env](Rng& rng) { return env.toHealpixFrame(sampleEnvironment(env, rng).dir); },
+  return {std::move(name), [&env](Rng& rng) { return env.toHealpixFrame(sampleEnvironment(env, rng.next2Precise()).dir); },
           [&env](glm::dvec3 d) { return double(environmentPdf(env, env.fromHealpixFrame(d))); }, env.order};
 }
 
@@ -117,7 +117,7 @@ TEST(Samplers, EnvironmentSamplePdfEqualsPdfOfDirection) {
     Rng rng(3, 0);
     int mismatches = 0;
     for (int i = 0; i < 100000; ++i) {
-      EnvSample s = sampleEnvironment(*env, rng);
+      EnvSample s = sampleEnvironment(*env, rng.next2Precise());
       ASSERT_GT(s.pdf, 0.0f);
       float p = environmentPdf(*env, s.dir);
       // A float direction may round onto a neighbouring pixel's border.
@@ -133,7 +133,7 @@ TEST(Samplers, LambertBrdfSamplingIsExact) {
   glm::vec3 wo = dirFromAngle(50);
   Rng rng(11, 0);
   for (int i = 0; i < 10000; ++i) {
-    glm::vec3 wi = sampleBsdf(m, wo, {rng.next(), rng.next(), rng.next()});
+    glm::vec3 wi = sampleBsdf(m, wo, rng.next2());
     float pdf = bsdfPdf(m, wo, wi);
     if (wi.z <= 1e-4f) continue;
     ASSERT_NEAR(evalBsdf(m, wo, wi).g / pdf, 0.7f, 1e-4f);
@@ -147,7 +147,7 @@ TEST(Samplers, GgxWeightIsBoundedByFresnel) {
   Rng rng(12, 0);
   int above = 0;
   for (int i = 0; i < 10000; ++i) {
-    glm::vec3 wi = sampleBsdf(m, wo, {rng.next(), rng.next(), rng.next()});
+    glm::vec3 wi = sampleBsdf(m, wo, rng.next2());
     if (wi.z <= 0.0f) continue;
     ++above;
     float w = evalBsdf(m, wo, wi).g / bsdfPdf(m, wo, wi);

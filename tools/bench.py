@@ -3,9 +3,10 @@
 
 Renders scene x device x method x spp with `htrender render`, times each
 render (the fastest of --runs: other load on the machine only ever adds time;
-one uncounted warm-up render per scene and device first), and measures its error against a converged reference: RMSE,
-relative MSE and mean absolute relative error (`htrender compare`), and the
-fireflies (pixels whose luminance error exceeds 10 robust sigma of the
+one uncounted warm-up render per scene and device first), and measures its
+error against a converged reference: RMSE, relative MSE and mean absolute
+relative error (`htrender compare`), each the mean over the timed runs, which
+use seeds 1, 2, ...; and the fireflies (of the first run) (pixels whose luminance error exceeds 10 robust sigma of the
 image's error, see `fireflies`). Writes results.csv, results.json (with the
 machine, devices, build, settings and skipped points) and results.md into
 --out, and keeps one EXR per point there (the first timed run).
@@ -13,6 +14,9 @@ machine, devices, build, settings and skipped points) and results.md into
 Methods: every method of `htrender methods` except oracle, which is slow and
 only rendered with --oracle, at --oracle-spp (its 16 spp is the variance
 floor the others are compared with).
+
+Samplers: --samplers stratified,independent renders every point with each
+per-pixel sampler (`htrender render --sampler`); rows carry the sampler.
 
 Devices: --device cpu,gpu renders every point on each device in the same
 run. A method a device does not render (the command refuses it) is skipped
@@ -32,6 +36,7 @@ import io
 import json
 import os
 import platform
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -201,8 +206,9 @@ def all_methods(htrender):
     return names
 
 
-def image_name(scene, method, device, spp):
-    return f"{Path(scene).stem}-{method}-{device}-{spp}.exr"
+def image_name(scene, method, device, spp, sampler="stratified"):
+    tail = "" if sampler == "stratified" else f"-{sampler}"
+    return f"{Path(scene).stem}-{method}-{device}-{spp}{tail}.exr"
 
 
 def main():
@@ -224,6 +230,9 @@ def main():
     p.add_argument("--height", type=int, default=0)
     p.add_argument("--ref-method", default="mis")
     p.add_argument("--ref-spp", type=int, default=4096)
+    p.add_argument("--samplers", default="stratified",
+                   help="comma-separated per-pixel samplers (htrender render --sampler); every point is rendered "
+                        "with each, side by side")
     p.add_argument("--extra", default="", help="extra render arguments, e.g. '--brdf-bounds table'")
     p.add_argument("--label", default="", help="suffix for method names in the results (with --extra)")
     p.add_argument("--htrender", default=str(ROOT / "build" / "htrender"))
@@ -247,6 +256,7 @@ def main():
     oracle_spps = [int(s) for s in args.oracle_spp.split(",") if s]
     devices = [d for d in args.device.split(",") if d]
     extra = args.extra.split()
+    samplers = [x for x in args.samplers.split(",") if x]
     rows, skipped = [], []
     refs = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -268,7 +278,9 @@ def main():
                     name = method + args.label
                     point_spps = oracle_spps if method == "oracle" else dev_spps
                     last = None  # (spp, seconds) of the previous point
-                    for spp in point_spps:
+                    for sampler, spp in ((x, spp) for x in samplers for spp in point_spps):
+                        if spp == point_spps[0]:
+                            last = None
                         predicted = last[1] * spp / last[0] if last else 0.0
                         if args.max_seconds > 0 and predicted > args.max_seconds:
                             skipped.append({"scene": Path(scene).stem, "device": device, "method": name, "spp": spp,
@@ -277,12 +289,15 @@ def main():
                             print(f"bench: {device}: skipping {name} at {spp} spp (about {predicted:.0f} s)",
                                   file=sys.stderr)
                             continue
-                        img = outdir / image_name(scene, name, device, spp)
+                        img = outdir / image_name(scene, name, device, spp, sampler)
+                        point_extra = [*extra, "--sampler", sampler]
                         times, gpu_times, stats = [], [], None
                         try:
+                            run_errs = []
                             for k in range(runs):
-                                stats = render(args, scene, method, spp, 1 + k, img if k == 0 else tmp / "run.exr",
-                                               device, extra)
+                                out = img if k == 0 else tmp / "run.exr"
+                                stats = render(args, scene, method, spp, 1 + k, out, device, point_extra)
+                                run_errs.append(compare(args, ref, out))
                                 times.append(stats["seconds"]["render"])
                                 if stats["seconds"].get("gpu") is not None:
                                     gpu_times.append(stats["seconds"]["gpu"])
@@ -293,10 +308,15 @@ def main():
                                             "reason": str(e)})
                             print(f"bench: {device}: skipping {name}: {e}", file=sys.stderr)
                             break
-                        err = compare(args, ref, img)
+                        # Error: the mean over the runs (seeds 1, 2, ...), which tames the seed-to-seed
+                        # spread of relMSE where rare large samples dominate it.
+                        err = {k: statistics.fmean(e[k] for e in run_errs) for k in run_errs[0]
+                               if isinstance(run_errs[0][k], float)}
+                        err["relmse_runs"] = [e["relmse"] for e in run_errs]
                         ff = fireflies(read_exr(args.htrender, img, tmp), ref_img)
                         sec = stats["seconds"]
                         row = {"scene": Path(scene).stem, "method": name, "device": device, "spp": spp,
+                               "sampler": sampler,
                                "seconds": min(times), "seconds_runs": times,
                                "gpu_seconds": min(gpu_times) if gpu_times else None,
                                "setup_seconds": sec.get("environment", 0.0) + sec.get("prepare", 0.0)
@@ -306,7 +326,8 @@ def main():
                                "fireflies": ff, "file": img.name, **err}
                         rows.append(row)
                         gpu = f" (gpu {row['gpu_seconds']:.3f} s)" if row["gpu_seconds"] is not None else ""
-                        print(f"{row['scene']:>16} {device:>4} {name:>14} {spp:>5} spp  {row['seconds']:8.3f} s{gpu}  "
+                        print(f"{row['scene']:>16} {device:>4} {name:>14} {sampler[:5]:>5} {spp:>5} spp  "
+                              f"{row['seconds']:8.3f} s{gpu}  "
                               f"rmse {err['rmse']:.4f}  relmse {err['relmse']:.5f}  fireflies {ff}", file=sys.stderr)
                         last = (spp, min(times))
                         Path(img).with_suffix(".json").unlink(missing_ok=True)
@@ -322,10 +343,10 @@ def main():
     build["version"] = run([args.htrender, "--version"]).strip()
     result = {"machine": machine(), "build": build, "devices": devices, "device": ",".join(devices),
               "runs": args.runs, "gpu_runs": args.gpu_runs or args.runs, "oracle_spp": oracle_spps, "warmup": args.warmup, "spp": spps, "width": args.width, "height": args.height,
-              "extra": args.extra, "firefly_sigmas": FIREFLY_SIGMAS, "references": refs, "results": rows,
+              "samplers": samplers, "extra": args.extra, "firefly_sigmas": FIREFLY_SIGMAS, "references": refs, "results": rows,
               "skipped": skipped}
     write_atomic(outdir / "results.json", json.dumps(result, indent=2))
-    cols = ["scene", "device", "method", "spp", "seconds", "gpu_seconds", "setup_seconds", "samples_per_pixel",
+    cols = ["scene", "device", "method", "sampler", "spp", "seconds", "gpu_seconds", "setup_seconds", "samples_per_pixel",
             "rmse", "relmse", "mean_abs_rel_error", "luminance_relmse", "fireflies", "device_name"]
     write_atomic(outdir / "results.csv", csv_text(cols, rows))
     with io.StringIO() as f:
@@ -334,11 +355,11 @@ def main():
         for scene, info in refs.items():
             f.write(f"Reference for {Path(scene).name}: {info['method']} at {info['spp']} spp, "
                     f"residual RMSE about {info['residual_rmse']:.4f}.\n\n")
-        f.write("| scene | device | method | spp | render s | gpu s | samples/px | RMSE | relMSE | mean abs rel err "
-                "| fireflies |\n|---|---|---|---|---|---|---|---|---|---|---|\n")
+        f.write("| scene | device | method | sampler | spp | render s | gpu s | samples/px | RMSE | relMSE "
+                "| mean abs rel err | fireflies |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n")
         for r in rows:
             g = f"{r['gpu_seconds']:.3f}" if r["gpu_seconds"] is not None else "-"
-            f.write(f"| {r['scene']} | {r['device']} | {r['method']} | {r['spp']} | {r['seconds']:.3f} | {g} "
+            f.write(f"| {r['scene']} | {r['device']} | {r['method']} | {r['sampler']} | {r['spp']} | {r['seconds']:.3f} | {g} "
                     f"| {r['samples_per_pixel']:.1f} | {r['rmse']:.4f} | {r['relmse']:.5f} "
                     f"| {r['mean_abs_rel_error']:.4f} | {r['fireflies']} |\n")
         if skipped:

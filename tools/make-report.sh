@@ -2,7 +2,8 @@
 # Regenerates docs/report/ for the default settings (about 25 minutes on 2 cores):
 #   1. tools/bench.py on data/scenes/spheres.json: every method at 4/16/64/256
 #      spp on the cpu, and on the gpu (lavapipe here) every method the GPU path
-#      has, at $GPU_SPP;
+#      has, at $GPU_SPP; each point with the stratified and the independent
+#      sampler ($SAMPLERS);
 #   2. the variance floor: oracle against ht-frontier, ht-vis, ht and mis at 16 spp, side by
 #      side in one run (oracle is slow: 16 spp only);
 #   3. tools/bench.py on every data/scenes/stress/*.json at one spp (the report
@@ -25,6 +26,7 @@ REPORT=${REPORT:-docs/report}
 WIDTH=${WIDTH:-200}              # spheres.json bench
 HEIGHT=${HEIGHT:-100}
 SPP=${SPP:-4,16,64,256}
+SAMPLERS=${SAMPLERS:-stratified,independent}
 RUNS=${RUNS:-2}                  # timed runs per point on the cpu (the fastest counts)
 DEVICES=${DEVICES:-cpu,gpu}
 GPU_SPP=${GPU_SPP:-4,16,64}
@@ -55,7 +57,7 @@ H="$bin/htrender"
 stamp "bench: spheres.json ${WIDTH}x${HEIGHT}, spp ${SPP} (gpu ${GPU_SPP}), devices ${DEVICES}"
 $PY tools/bench.py --htrender "$H" --scene data/scenes/spheres.json --device "$DEVICES" \
   --spp "$SPP" --runs "$RUNS" --gpu-spp "$GPU_SPP" --gpu-runs "$GPU_RUNS" --width "$WIDTH" --height "$HEIGHT" \
-  --ref-spp "$REF_SPP" --max-seconds "$MAX_SECONDS" --out "$OUT/bench"
+  --samplers "$SAMPLERS" --ref-spp "$REF_SPP" --max-seconds "$MAX_SECONDS" --out "$OUT/bench"
 
 stamp "variance floor: oracle at 16 spp, ${FLOOR_WIDTH}x${FLOOR_HEIGHT}"
 $PY tools/bench.py --htrender "$H" --scene data/scenes/spheres.json --device cpu --methods ht-frontier,ht-vis,ht,mis \
