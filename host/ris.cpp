@@ -43,7 +43,7 @@ RisSample RisSampler::sample(int candidates, PixelSampler& sampler, uint32_t ind
     if (k % 2 == 0) {
       sampler.startSample(index);
       sampler.setDimension(1 + k / 2);
-      draws = sampler.get2D();
+      draws = sampler.getIndependent2D();
     }
     const float u = k % 2 == 0 ? draws.x : draws.y;
     if (w <= 0.0) continue;

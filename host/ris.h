@@ -56,7 +56,7 @@ class RisSampler {
   // samples one larger set). The streaming reservoir keeps candidate k with
   // probability w_k / sum w only if its draws are independent of each other
   // and of the candidates: the draws of candidates 2j and 2j + 1 are the two
-  // coordinates of dimension 1 + j of sample `index`.
+  // coordinates of dimension 1 + j of sample `index`, i.i.d.
   RisSample sample(int candidates, PixelSampler& sampler, uint32_t index) const;
 
   float mixturePdf(const glm::vec3& worldDir) const;

@@ -85,6 +85,14 @@ class PixelSampler {
     const uint32_t j = shuffled(d);
     return {reverseBits(owenScrambleReversed(j, sx)), reverseBits(owenScrambleReversed(sobolSecondReversed(j), sy))};
   }
+  // The next decision's point drawn i.i.d. whatever the kind: for draws
+  // that must be independent of the sample's other draws and gain nothing
+  // from stratification (ris's reservoir).
+  glm::vec2 getIndependent2D() {
+    const uint32_t d = dimension_++;
+    const uint32_t i = pcgHash(index_);
+    return {float(pcgHash(seed(3 * d + 1) ^ i) >> 8) * 0x1p-24f, float(pcgHash(seed(3 * d + 2) ^ i) >> 8) * 0x1p-24f};
+  }
   // In [0,1)^2 with 24 bits: for warps that use the point once.
   glm::vec2 get2D() {
     const glm::uvec2 b = nextBits();

@@ -82,7 +82,7 @@ uint risSamples(Shading sh, uint begin, uint end, uint candidates, inout Sampler
       if ((k & 1u) == 0u) {
         samplerStart(smp, i);
         smp.dimension = 1u + k / 2u;
-        draws = samplerNext2D(smp);
+        draws = samplerNextIndependent2D(smp);
       }
       float u = (k & 1u) == 0u ? draws.x : draws.y;
       if (w <= 0.0) continue;

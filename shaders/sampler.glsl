@@ -58,6 +58,16 @@ uvec2 samplerNextBits(inout Sampler s) {
                bitfieldReverse(owenScrambleReversed(sobolSecondReversed(j), sy)));
 }
 
+// PixelSampler::getIndependent2D.
+precise vec2 samplerNextIndependent2D(inout Sampler s) {
+  uint d = s.dimension++;
+  uint i = pcgHash(s.index);
+  const float kTwoPowMinus24 = uintBitsToFloat(0x33800000u);
+  precise vec2 u = vec2(float(pcgHash(samplerSeed(s, 3u * d + 1u) ^ i) >> 8),
+                        float(pcgHash(samplerSeed(s, 3u * d + 2u) ^ i) >> 8)) * kTwoPowMinus24;
+  return u;
+}
+
 precise vec2 samplerNext2D(inout Sampler s) {
   uvec2 b = samplerNextBits(s);
   const float kTwoPowMinus24 = uintBitsToFloat(0x33800000u);
