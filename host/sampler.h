@@ -72,7 +72,6 @@ class PixelSampler {
     dimension_ = 0;
   }
   void setDimension(uint32_t dimension) { dimension_ = dimension; }
-  uint32_t dimension() const { return dimension_; }
 
   // The next decision's point, 32 bits per coordinate.
   glm::uvec2 nextBits() {
@@ -97,14 +96,6 @@ class PixelSampler {
   glm::vec2 get2D() {
     const glm::uvec2 b = nextBits();
     return {float(b.x >> 8) * 0x1p-24f, float(b.y >> 8) * 0x1p-24f};
-  }
-  // The next decision's first coordinate only (its second is not computed).
-  float get1D() {
-    const uint32_t d = dimension_++;
-    const uint32_t sx = seed(3 * d + 1);
-    const uint32_t b = kind_ == SamplerKind::Independent ? pcgHash(sx ^ pcgHash(index_))
-                                                          : reverseBits(owenScrambleReversed(shuffled(d), sx));
-    return float(b >> 8) * 0x1p-24f;
   }
   // In [0,1)^2 with 53 bits (the point's 32, then 21 hashed from the index
   // and the dimension's seed): for hierarchical warps that rescale a

@@ -29,7 +29,7 @@ precise vec3 evalBsdf(GpuMaterial m, vec3 wo, vec3 wi) {
   return result;
 }
 
-// u.x chooses the lobe, u.yz drive it.
+// sampleBsdf (host/bsdf.cpp): u.x chooses the lobe, then drives it with u.y.
 precise vec3 sampleBsdf(GpuMaterial m, vec3 wo, vec2 u) {
   float ps = m.specularProbability;
   bool diffuse = u.x >= ps;

@@ -74,15 +74,6 @@ precise vec2 samplerNext2D(inout Sampler s) {
   precise vec2 u = vec2(float(b.x >> 8), float(b.y >> 8)) * kTwoPowMinus24;
   return u;
 }
-// PixelSampler::get1D: the first coordinate only.
-precise float samplerNext1D(inout Sampler s) {
-  uint d = s.dimension++;
-  uint sx = samplerSeed(s, 3u * d + 1u);
-  uint b = s.kind == HT_SAMPLER_INDEPENDENT ? pcgHash(sx ^ pcgHash(s.index))
-                                            : bitfieldReverse(owenScrambleReversed(samplerShuffled(s, d), sx));
-  precise float u = float(b >> 8) * uintBitsToFloat(0x33800000u);
-  return u;
-}
 
 #if HT_FP64
 // PixelSampler::get2DPrecise: 53 bits.

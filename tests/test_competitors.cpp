@@ -336,8 +336,9 @@ TEST(Competitors, WisBiasedErrorFallsWithOrder) {
     const double err = std::abs(e.mean.g - ref.value.g) / ref.value.g;
     const double se = (e.stdError.g + ref.error.g) / ref.value.g;
     std::printf("wis-biased order %d: relative error %.4f (+- %.4f)\n", order, err, se);
-    if (order > 1)
+    if (order > 1) {
       EXPECT_GT((previous - err) / std::sqrt(se * se + previousSe * previousSe), zCrit) << "order " << order;
+    }
     previous = err;
     previousSe = se;
   }
