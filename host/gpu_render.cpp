@@ -139,6 +139,16 @@ uint32_t firstBatchLimit(const RenderSettings& s, int envOrder, size_t shapes) {
   return uint32_t(std::clamp<uint64_t>(kLoopIterationsPerBatch / cost, 1, 1u << 20));
 }
 
+// The compute shader of a method's family (shaders/<name>.comp.glsl).
+const char* familyShader(Family f) {
+  switch (f) {
+    case Family::Baseline: return "baselines";
+    case Family::Ht: return "ht";
+    case Family::Competitor: return "competitors";
+    default: return nullptr;
+  }
+}
+
 }  // namespace
 
 std::vector<GpuDeviceInfo> listGpuDevices() {
@@ -157,7 +167,7 @@ int defaultGpuDevice(const std::vector<GpuDeviceInfo>& devices) {
   return best;
 }
 
-bool gpuSupportsMethod(Method m) { return methodInfo(m).gpu; }
+bool gpuSupportsMethod(Method m) { return methodInfo(m).gpu && familyShader(methodInfo(m).family); }
 
 std::string shaderDirNextToExecutable() {
   std::error_code ec;
@@ -169,9 +179,9 @@ std::string shaderDirNextToExecutable() {
 struct GpuRenderer::Impl {
   vk::Context ctx;
   GpuDeviceInfo info;
-  std::string shaderName;
+  std::string shaderDir;
+  std::string shaderName;  // the current pipeline's SPIR-V file
   std::optional<vk::ComputePipeline> pipeline;
-  std::string shaderPath;
   uint32_t pipelineMethod = HT_METHOD_ANY;  // what the pipeline is specialized for
   VkQueryPool queries = VK_NULL_HANDLE;
   uint64_t timestampMask = 0;
@@ -198,6 +208,12 @@ struct GpuRenderer::Impl {
   vk::Buffer htSampleLog;
 
   void prepareHt(const RenderSettings& s);
+  void checkMethod(const RenderSettings& s) const;
+  std::pair<uint32_t, uint32_t> prepareTiles(const RenderSettings& s);
+  void bindScratch(const RenderSettings& s, GpuPush& push) const;
+  double submitBatches(GpuPush& push, uint32_t first, uint32_t count, uint32_t limit);
+  void renderTile(const RenderSettings& s, GpuPush& push, uint32_t& limit, GpuRenderResult& out);
+  void readTile(const RenderSettings& s, const GpuPush& push, GpuRenderResult& out);
 
   explicit Impl(const GpuOptions& o)
       : ctx(vk::ContextOptions{o.deviceIndex, o.validation, !o.forceFp32, o.validationLog}) {
@@ -205,12 +221,10 @@ struct GpuRenderer::Impl {
     recordHtSamples = o.recordHtSamples;
     batchLimit = o.batchLimit;
     maxTileSide = std::max<uint32_t>(kWorkgroupSize, uint32_t(std::max(o.maxTileSide, 1)) / kWorkgroupSize * kWorkgroupSize);
-    shaderName = ctx.float64 ? "render.fp64.spv" : "render.fp32.spv";
-    const std::string dir = o.shaderDir.empty() ? shaderDirNextToExecutable() : o.shaderDir;
-    shaderPath = (std::filesystem::path(dir) / shaderName).string();
-    // Checks the shader against the host now; specialized to the cheapest
-    // method, as compiling every method's branch takes long on lavapipe.
-    usePipeline(HT_METHOD_UNIFORM);
+    shaderDir = o.shaderDir.empty() ? shaderDirNextToExecutable() : o.shaderDir;
+    // Checks a shader against the host now; the cheapest method's pipeline,
+    // as compiling takes long on lavapipe.
+    usePipeline(Method::Uniform);
     if (ctx.info.timestampValidBits > 0) {
       VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
       q.queryType = VK_QUERY_TYPE_TIMESTAMP;
@@ -220,14 +234,16 @@ struct GpuRenderer::Impl {
                                                         : (uint64_t(1) << ctx.info.timestampValidBits) - 1;
     }
   }
-  // A pipeline specialized for `method` (HT_SPEC_METHOD), with the buffers
-  // bound so far bound again.
-  void usePipeline(uint32_t method) {
-    if (pipelineMethod == method) return;
-    const uint32_t specialization[] = {method};
-    pipeline.emplace(ctx, shaderPath, kBindings, uint32_t(sizeof(GpuPush)),
-                     std::array<uint32_t, 3>{kWorkgroupSize, kWorkgroupSize, 1}, specialization);
-    pipelineMethod = method;
+  // The method's family shader specialized for it (HT_SPEC_METHOD), with
+  // the buffers bound so far bound again.
+  void usePipeline(Method method) {
+    if (pipelineMethod == uint32_t(method)) return;
+    const uint32_t specialization[] = {uint32_t(method)};
+    shaderName = fmt::format("{}.{}.spv", familyShader(methodInfo(method).family), ctx.float64 ? "fp64" : "fp32");
+    pipeline.emplace(ctx, (std::filesystem::path(shaderDir) / shaderName).string(), kBindings,
+                     uint32_t(sizeof(GpuPush)), std::array<uint32_t, 3>{kWorkgroupSize, kWorkgroupSize, 1},
+                     specialization);
+    pipelineMethod = uint32_t(method);
     if (hasScene) {
       pipeline->setBuffer(HT_BINDING_SCENE, sceneBuffer);
       pipeline->setBuffer(HT_BINDING_MATERIALS, materials);
@@ -360,199 +376,239 @@ void GpuRenderer::Impl::prepareHt(const RenderSettings& s) {
   if (changed) sceneBuffer.upload(&scene, sizeof(scene));
 }
 
-GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
-  Impl& m = *impl_;
-  if (!m.hasScene) throw Error("internal: GpuRenderer::render before setScene");
-  if (!gpuSupportsMethod(s.method))
-    throw Error(fmt::format("method {} has no GPU version (it runs on the CPU reference only); use --device cpu", methodName(s.method)));
-  m.usePipeline(uint32_t(s.method));
-  const auto start = std::chrono::steady_clock::now();
+namespace {
 
-  // Square tiles, a multiple of the workgroup, sized so that one dispatch
-  // draws at most kDirectionsPerDispatch directions.
-  const bool wisMethod = s.method == Method::Wis || s.method == Method::WisBiased;
-  if (methodInfo(s.method).gpuFloat64 && !m.ctx.float64)
-    throw Error(fmt::format("method {} needs shaderFloat64 on the GPU ({} has none, or fp32 was forced); "
-                            "use --device cpu", methodName(s.method), m.info.name));
-  const bool htMethod = methodInfo(s.method).family == Family::Ht;
-  if (htMethod) m.prepareHt(s);
-  // ris draws M candidates per sample; tsis first partitions the sphere
-  // (about five BRDF evaluations per region); wis evaluates the BRDF at
-  // every node of its exact levels, then four times per level below them.
+// A tile's push constants, batch fields aside.
+GpuPush tilePush(const RenderSettings& s, uint32_t x, uint32_t y, uint32_t tileW, uint32_t tileH) {
+  GpuPush push{};
+  push.width = uint32_t(s.width);
+  push.height = uint32_t(s.height);
+  push.tileX = x;
+  push.tileY = y;
+  push.tileWidth = std::min(tileW, uint32_t(s.width) - x);
+  push.tileHeight = std::min(tileH, uint32_t(s.height) - y);
+  push.method = uint32_t(s.method);
+  push.spp = uint32_t(std::max(s.spp, 1));
+  push.seed = s.seed;
+  if (methodInfo(s.method).family == Family::Ht) {
+    // HtOptions as estimateDirect (host/integrator.cpp) sets them.
+    const HtOptions ho = htOptionsFor(s.method, s.options);
+    if (ho.budgetRefinements > HT_MAX_BUDGET_REFINEMENTS || ho.maxLevel > 255)
+      throw Error("internal: HtOptions beyond the shaders' limits");
+    push.htFlags = (ho.visibility ? HT_FLAG_VISIBILITY : 0u) | (ho.biased ? HT_FLAG_BIASED : 0u) |
+                   (ho.brdfTable ? HT_FLAG_BRDF_TABLE : 0u) | (ho.sphereSequence ? HT_FLAG_SPHERE_SEQUENCE : 0u) |
+                   uint32_t(ho.budgetRefinements) << 8 | uint32_t(ho.maxLevel) << 16;
+    push.htBrdfFloor = ho.brdfFloor;
+    push.htVisibilityFloor = ho.visibilityFloor;
+    push.htBiasedSmoothness = ho.biasedSmoothness;
+  }
+  push.risCandidates = uint32_t(std::max(s.options.risCandidates, 1));
+  push.wisOrder = uint32_t(std::max(s.options.wisOrder, 0));
+  push.samplerKind = uint32_t(s.options.sampler);
+  push.canaryLoops = 2;
+  push.canaryZero = 0;
+  return push;
+}
+
+// Directions a pixel draws, roughly: ris draws M candidates per sample;
+// tsis first partitions the sphere (about five BRDF evaluations per region);
+// wis evaluates the BRDF at every node of its exact levels, then four times
+// per level below them.
+uint64_t directionsPerPixel(const RenderSettings& s) {
   const uint64_t spp = uint64_t(std::max(s.spp, 1));
-  const uint64_t perPixel =
-      s.method == Method::Mis    ? 2 * spp
-      : s.method == Method::Ris  ? spp * uint64_t(std::max(s.options.risCandidates, 1))
-      : s.method == Method::Tsis ? spp + 5 * HT_TSIS_REGIONS
-      : wisMethod                ? 4 * spp * (HT_WIS_MAX_ORDER - HT_WIS_EXACT_LEVELS) + HT_WIS_TOP_NODES
-                                 : spp;
-  uint32_t side = m.maxTileSide;
-  while (side > kWorkgroupSize && uint64_t(side) * side * perPixel > kDirectionsPerDispatch)
+  switch (s.method) {
+    case Method::Mis: return 2 * spp;
+    case Method::Ris: return spp * uint64_t(std::max(s.options.risCandidates, 1));
+    case Method::Tsis: return spp + 5 * HT_TSIS_REGIONS;
+    case Method::Wis:
+    case Method::WisBiased: return 4 * spp * (HT_WIS_MAX_ORDER - HT_WIS_EXACT_LEVELS) + HT_WIS_TOP_NODES;
+    default: return spp;
+  }
+}
+
+}  // namespace
+
+void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
+  if (!hasScene) throw Error("internal: GpuRenderer::render before setScene");
+  if (!gpuSupportsMethod(s.method))
+    throw Error(fmt::format("method {} has no GPU version (it runs on the CPU reference only); use --device cpu",
+                            methodName(s.method)));
+  if (methodInfo(s.method).gpuFloat64 && !ctx.float64)
+    throw Error(fmt::format("method {} needs shaderFloat64 on the GPU ({} has none, or fp32 was forced); "
+                            "use --device cpu", methodName(s.method), info.name));
+}
+
+// Square tiles, a multiple of the workgroup, sized so that one dispatch
+// draws at most kDirectionsPerDispatch directions; their buffers.
+std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettings& s) {
+  uint32_t side = maxTileSide;
+  while (side > kWorkgroupSize && uint64_t(side) * side * directionsPerPixel(s) > kDirectionsPerDispatch)
     side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
   const uint32_t tileW = std::min<uint32_t>(side, uint32_t(s.width));
   const uint32_t tileH = std::min<uint32_t>(side, uint32_t(s.height));
-  const VkDeviceSize pixelBytes = VkDeviceSize(tileW) * tileH * sizeof(GpuPixel);
-  if (m.pixels.size() < pixelBytes) {
-    m.pixels = vk::Buffer(m.ctx, pixelBytes, vk::MemoryUse::Readback);
-    m.pipeline->setBuffer(HT_BINDING_PIXELS, m.pixels);
+  const VkDeviceSize tilePixels = VkDeviceSize(tileW) * tileH;
+  if (pixels.size() < tilePixels * sizeof(GpuPixel)) {
+    pixels = vk::Buffer(ctx, tilePixels * sizeof(GpuPixel), vk::MemoryUse::Readback);
+    pipeline->setBuffer(HT_BINDING_PIXELS, pixels);
   }
-  const VkDeviceSize stateBytes = VkDeviceSize(tileW) * tileH * sizeof(GpuPixelState);
-  if (m.pixelState.size() < stateBytes) m.pixelState = vk::Buffer(m.ctx, stateBytes, vk::MemoryUse::DeviceLocal);
-  const VkDeviceSize tsisBytes = VkDeviceSize(tileW) * tileH * HT_TSIS_REGIONS * sizeof(GpuTsisSlot);
-  if (s.method == Method::Tsis && m.tsisScratch.size() < tsisBytes)
-    m.tsisScratch = vk::Buffer(m.ctx, tsisBytes, vk::MemoryUse::DeviceLocal);
-  const VkDeviceSize wisBytes = VkDeviceSize(tileW) * tileH * HT_WIS_TOP_NODES * sizeof(double);
-  if (wisMethod && m.wisScratch.size() < wisBytes)
-    m.wisScratch = vk::Buffer(m.ctx, wisBytes, vk::MemoryUse::DeviceLocal);
-  const VkDeviceSize logBytes = VkDeviceSize(tileW) * tileH * HT_SAMPLE_LOG_SLOTS * sizeof(GpuHtSample);
-  if (htMethod && m.recordHtSamples && m.htSampleLog.size() < logBytes)
-    m.htSampleLog = vk::Buffer(m.ctx, logBytes, vk::MemoryUse::Readback);
-  // HtOptions as estimateDirect (host/integrator.cpp) sets them.
-  const HtOptions ho = htOptionsFor(s.method, s.options);
-  if (ho.budgetRefinements > HT_MAX_BUDGET_REFINEMENTS || ho.maxLevel > 255)
-    throw Error("internal: HtOptions beyond the shaders' limits");
+  if (pixelState.size() < tilePixels * sizeof(GpuPixelState))
+    pixelState = vk::Buffer(ctx, tilePixels * sizeof(GpuPixelState), vk::MemoryUse::DeviceLocal);
+  const VkDeviceSize tsisBytes = tilePixels * HT_TSIS_REGIONS * sizeof(GpuTsisSlot);
+  if (s.method == Method::Tsis && tsisScratch.size() < tsisBytes)
+    tsisScratch = vk::Buffer(ctx, tsisBytes, vk::MemoryUse::DeviceLocal);
+  const VkDeviceSize wisBytes = tilePixels * HT_WIS_TOP_NODES * sizeof(double);
+  const bool wisMethod = s.method == Method::Wis || s.method == Method::WisBiased;
+  if (wisMethod && wisScratch.size() < wisBytes) wisScratch = vk::Buffer(ctx, wisBytes, vk::MemoryUse::DeviceLocal);
+  const VkDeviceSize logBytes = tilePixels * HT_SAMPLE_LOG_SLOTS * sizeof(GpuHtSample);
+  const bool htMethod = methodInfo(s.method).family == Family::Ht;
+  if (htMethod && recordHtSamples && htSampleLog.size() < logBytes)
+    htSampleLog = vk::Buffer(ctx, logBytes, vk::MemoryUse::Readback);
+  return {tileW, tileH};
+}
+
+// The tile's scratch buffers in its push constants.
+void GpuRenderer::Impl::bindScratch(const RenderSettings& s, GpuPush& push) const {
+  push.tsisScratch = s.method == Method::Tsis ? tsisScratch.address() : 0;
+  push.wisScratch = s.method == Method::Wis || s.method == Method::WisBiased ? wisScratch.address() : 0;
+  push.pixelState = pixelState.address();
+  if (methodInfo(s.method).family == Family::Ht && recordHtSamples) {
+    const VkDeviceAddress a = htSampleLog.address();
+    push.htSampleLog = glm::uvec2(uint32_t(a), uint32_t(a >> 32));
+  }
+}
+
+// One submission of `count` batches from `first` on; returns its GPU time
+// (0 without timestamps).
+double GpuRenderer::Impl::submitBatches(GpuPush& push, uint32_t first, uint32_t count, uint32_t limit) {
+  const uint32_t groupsX = (push.tileWidth + kWorkgroupSize - 1) / kWorkgroupSize;
+  const uint32_t groupsY = (push.tileHeight + kWorkgroupSize - 1) / kWorkgroupSize;
+  auto barrier = [](VkCommandBuffer cmd, VkAccessFlags src, VkAccessFlags dst, VkPipelineStageFlags from,
+                    VkPipelineStageFlags to) {
+    VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = src;
+    b.dstAccessMask = dst;
+    vkCmdPipelineBarrier(cmd, from, to, 0, 1, &b, 0, nullptr, 0, nullptr);
+  };
+  ctx.submitAndWait([&](VkCommandBuffer cmd) {
+    // Uploads (host writes, staging copies) before the shader reads.
+    barrier(cmd, VK_ACCESS_HOST_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
+            VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
+            VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
+    if (queries) {
+      vkCmdResetQueryPool(cmd, queries, 0, 2);
+      vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
+    }
+    for (uint32_t k = 0; k < count; ++k) {
+      // Each batch reads the pixel states the previous one wrote.
+      if (k > 0)
+        barrier(cmd, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
+                VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
+      push.batch = first + k;
+      push.batchLimit = limit;
+      pipeline->dispatch(cmd, &push, groupsX, groupsY);
+    }
+    if (queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
+    barrier(cmd, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_HOST_READ_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+            VK_PIPELINE_STAGE_HOST_BIT);
+  });
+  if (!queries) return 0.0;
+  uint64_t stamps[2];
+  vk::check(vkGetQueryPoolResults(ctx.device, queries, 0, 2, sizeof(stamps), stamps, sizeof(uint64_t),
+                                  VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
+            "vkGetQueryPoolResults");
+  return double((stamps[1] - stamps[0]) & timestampMask) * double(ctx.info.timestampPeriodNs) * 1e-9;
+}
+
+// Batches until every pixel of the tile is done; the whole tile again with
+// smaller batches where the driver cut a loop short.
+void GpuRenderer::Impl::renderTile(const RenderSettings& s, GpuPush& push, uint32_t& limit, GpuRenderResult& out) {
+  const size_t tilePixels = size_t(push.tileWidth) * push.tileHeight;
+  const auto* px = static_cast<const GpuPixel*>(pixels.mapped());
+  const uint64_t spp = uint64_t(std::max(s.spp, 1));
+  const bool htMethod = methodInfo(s.method).family == Family::Ht;
+  for (uint32_t batch = 0;;) {
+    // The sampling methods need ceil(spp / limit) batches; HT's traversal
+    // takes some 40 steps per sample, read back to see when it is done.
+    const uint64_t expected = htMethod ? (40 * spp + 400 + limit - 1) / limit : (spp + limit - 1) / limit;
+    const uint32_t count =
+        uint32_t(std::clamp<uint64_t>(expected - std::min<uint64_t>(expected, batch), 1, kBatchesPerSubmission));
+    const double seconds = submitBatches(push, batch, count, limit);
+    if (queries) out.gpuSeconds += seconds;
+    batch += count;
+    pixels.invalidate();
+    bool cut = false, done = true;
+    for (size_t i = 0; i < tilePixels; ++i) {
+      cut = cut || (px[i].status & HT_PIXEL_LOOPS_CUT) != 0;
+      done = done && (px[i].status & HT_PIXEL_DONE) != 0;
+    }
+    if (cut) {
+      if (limit == 1)
+        throw Error(fmt::format("the Vulkan driver of {} ended a shader loop early even at one sample per "
+                                "dispatch; use --device cpu", info.name));
+      limit /= 2;
+      batch = 0;
+      ++out.restarts;
+      continue;
+    }
+    if (done) return;
+  }
+}
+
+// The finished tile's pixels, counters and (ht*, when asked) first samples.
+void GpuRenderer::Impl::readTile(const RenderSettings& s, const GpuPush& push, GpuRenderResult& out) {
+  RenderResult& r = out.result;
+  const auto* px = static_cast<const GpuPixel*>(pixels.mapped());
+  for (uint32_t y = 0; y < push.tileHeight; ++y)
+    for (uint32_t x = 0; x < push.tileWidth; ++x) {
+      const GpuPixel& p = px[size_t(y) * push.tileWidth + x];
+      r.image.at(int(push.tileX + x), int(push.tileY + y)) = p.radiance;
+      r.shadedPixels += p.shaded;
+      r.counters.directions += p.directions;
+      r.counters.shadowRays += p.shadowRays;
+      r.counters.htNodes += p.htNodes;
+      if (s.pixelCounts) r.pixelDirections[size_t(push.tileY + y) * s.width + push.tileX + x] = p.directions;
+    }
+  if (methodInfo(s.method).family != Family::Ht || !recordHtSamples) return;
+  if (out.htSamples.empty()) out.htSamples.resize(size_t(s.width) * s.height);
+  htSampleLog.invalidate();
+  const auto* log = static_cast<const GpuHtSample*>(htSampleLog.mapped());
+  for (uint32_t y = 0; y < push.tileHeight; ++y)
+    for (uint32_t x = 0; x < push.tileWidth; ++x) {
+      const size_t i = size_t(y) * push.tileWidth + x;
+      const uint32_t n = std::min<uint32_t>(px[i].directions, HT_SAMPLE_LOG_SLOTS);
+      auto& samples = out.htSamples[size_t(push.tileY + y) * s.width + push.tileX + x];
+      for (uint32_t k = 0; k < n; ++k) {
+        const GpuHtSample& g = log[i * HT_SAMPLE_LOG_SLOTS + k];
+        samples.push_back({g.dir, g.h, uint64_t(g.candidate.x) | uint64_t(g.candidate.y) << 32, int(g.level),
+                           g.weight});
+      }
+    }
+}
+
+GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
+  Impl& m = *impl_;
+  m.checkMethod(s);
+  m.usePipeline(s.method);
+  const auto start = std::chrono::steady_clock::now();
+  if (methodInfo(s.method).family == Family::Ht) m.prepareHt(s);
+  const auto [tileW, tileH] = m.prepareTiles(s);
 
   GpuRenderResult out;
+  out.gpuSeconds = m.queries ? 0.0 : -1.0;
   RenderResult& r = out.result;
   r.image.width = s.width;
   r.image.height = s.height;
   r.image.pixels.assign(size_t(s.width) * s.height, glm::vec3(0.0f));
   if (s.pixelCounts) r.pixelDirections.assign(size_t(s.width) * s.height, 0);
-  const uint32_t tilesX = (uint32_t(s.width) + tileW - 1) / tileW;
-  const uint32_t tilesY = (uint32_t(s.height) + tileH - 1) / tileH;
-  const uint32_t tileCount = tilesX * tilesY;
-  double gpuNs = 0.0;
+  const uint32_t tileCount = ((uint32_t(s.width) + tileW - 1) / tileW) * ((uint32_t(s.height) + tileH - 1) / tileH);
   int lastReported = -1;
-  uint32_t batchLimit = m.batchLimit > 0 ? m.batchLimit : firstBatchLimit(s, m.envOrder, m.occluders);
-
-  for (uint32_t ty = 0; ty < tilesY; ++ty)
-    for (uint32_t tx = 0; tx < tilesX; ++tx) {
-      GpuPush push{};
-      push.width = uint32_t(s.width);
-      push.height = uint32_t(s.height);
-      push.tileX = tx * tileW;
-      push.tileY = ty * tileH;
-      push.tileWidth = std::min(tileW, uint32_t(s.width) - push.tileX);
-      push.tileHeight = std::min(tileH, uint32_t(s.height) - push.tileY);
-      push.method = uint32_t(s.method);
-      push.spp = uint32_t(std::max(s.spp, 1));
-      push.seed = s.seed;
-      if (htMethod) {
-        push.htFlags = (ho.visibility ? HT_FLAG_VISIBILITY : 0u) | (ho.biased ? HT_FLAG_BIASED : 0u) |
-                       (ho.brdfTable ? HT_FLAG_BRDF_TABLE : 0u) | (ho.sphereSequence ? HT_FLAG_SPHERE_SEQUENCE : 0u) |
-                       uint32_t(ho.budgetRefinements) << 8 | uint32_t(ho.maxLevel) << 16;
-        push.htBrdfFloor = ho.brdfFloor;
-        push.htVisibilityFloor = ho.visibilityFloor;
-        push.htBiasedSmoothness = ho.biasedSmoothness;
-        if (m.recordHtSamples) {
-          const VkDeviceAddress a = m.htSampleLog.address();
-          push.htSampleLog = glm::uvec2(uint32_t(a), uint32_t(a >> 32));
-        }
-      }
-      push.risCandidates = uint32_t(std::max(s.options.risCandidates, 1));
-      push.tsisScratch = s.method == Method::Tsis ? m.tsisScratch.address() : 0;
-      push.wisScratch = wisMethod ? m.wisScratch.address() : 0;
-      push.wisOrder = uint32_t(std::max(s.options.wisOrder, 0));
-      push.samplerKind = uint32_t(s.options.sampler);
-      push.pixelState = m.pixelState.address();
-      push.canaryLoops = 2;
-      push.canaryZero = 0;
-      const uint32_t groupsX = (push.tileWidth + kWorkgroupSize - 1) / kWorkgroupSize;
-      const uint32_t groupsY = (push.tileHeight + kWorkgroupSize - 1) / kWorkgroupSize;
-      const size_t tilePixels = size_t(push.tileWidth) * push.tileHeight;
-      const auto* px = static_cast<const GpuPixel*>(m.pixels.mapped());
-      // Batches until every pixel of the tile is done; the whole tile again
-      // with smaller batches where the driver cut a loop short.
-      for (uint32_t batch = 0;;) {
-        // The sampling methods need ceil(spp / limit) batches; HT's traversal
-        // takes some 40 steps per sample, read back to see when it is done.
-        const uint64_t expected = htMethod ? (40 * spp + 400 + batchLimit - 1) / batchLimit
-                                           : (spp + batchLimit - 1) / batchLimit;
-        const uint32_t count = uint32_t(std::clamp<uint64_t>(expected - std::min<uint64_t>(expected, batch), 1,
-                                                             kBatchesPerSubmission));
-        m.ctx.submitAndWait([&](VkCommandBuffer cmd) {
-          // Uploads (host writes, staging copies) before the shader reads.
-          VkMemoryBarrier before{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-          before.srcAccessMask = VK_ACCESS_HOST_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
-          before.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
-          vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
-                               VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &before, 0, nullptr, 0, nullptr);
-          if (m.queries) {
-            vkCmdResetQueryPool(cmd, m.queries, 0, 2);
-            vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, m.queries, 0);
-          }
-          for (uint32_t k = 0; k < count; ++k) {
-            if (k > 0) {
-              // Each batch reads the pixel states the previous one wrote.
-              VkMemoryBarrier between{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-              between.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-              between.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
-              vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0,
-                                   1, &between, 0, nullptr, 0, nullptr);
-            }
-            push.batch = batch + k;
-            push.batchLimit = batchLimit;
-            m.pipeline->dispatch(cmd, &push, groupsX, groupsY);
-          }
-          if (m.queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, m.queries, 1);
-          VkMemoryBarrier after{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-          after.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
-          after.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-          vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &after, 0,
-                               nullptr, 0, nullptr);
-        });
-        if (m.queries) {
-          uint64_t stamps[2];
-          vk::check(vkGetQueryPoolResults(m.ctx.device, m.queries, 0, 2, sizeof(stamps), stamps, sizeof(uint64_t),
-                                          VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
-                    "vkGetQueryPoolResults");
-          gpuNs += double((stamps[1] - stamps[0]) & m.timestampMask) * double(m.ctx.info.timestampPeriodNs);
-        }
-        batch += count;
-        m.pixels.invalidate();
-        bool cut = false, done = true;
-        for (size_t i = 0; i < tilePixels; ++i) {
-          cut = cut || (px[i].status & HT_PIXEL_LOOPS_CUT) != 0;
-          done = done && (px[i].status & HT_PIXEL_DONE) != 0;
-        }
-        if (cut) {
-          if (batchLimit == 1)
-            throw Error(fmt::format("the Vulkan driver of {} ended a shader loop early even at one sample per "
-                                    "dispatch; use --device cpu", m.info.name));
-          batchLimit /= 2;
-          batch = 0;
-          ++out.restarts;
-          continue;
-        }
-        if (done) break;
-      }
-      out.batchLimit = batchLimit;
-      for (uint32_t y = 0; y < push.tileHeight; ++y)
-        for (uint32_t x = 0; x < push.tileWidth; ++x) {
-          const GpuPixel& p = px[size_t(y) * push.tileWidth + x];
-          r.image.at(int(push.tileX + x), int(push.tileY + y)) = p.radiance;
-          r.shadedPixels += p.shaded;
-          r.counters.directions += p.directions;
-          r.counters.shadowRays += p.shadowRays;
-          r.counters.htNodes += p.htNodes;
-          if (s.pixelCounts) r.pixelDirections[size_t(push.tileY + y) * s.width + push.tileX + x] = p.directions;
-        }
-      if (htMethod && m.recordHtSamples) {
-        if (out.htSamples.empty()) out.htSamples.resize(size_t(s.width) * s.height);
-        m.htSampleLog.invalidate();
-        const auto* log = static_cast<const GpuHtSample*>(m.htSampleLog.mapped());
-        for (uint32_t y = 0; y < push.tileHeight; ++y)
-          for (uint32_t x = 0; x < push.tileWidth; ++x) {
-            const size_t i = size_t(y) * push.tileWidth + x;
-            const uint32_t n = std::min<uint32_t>(px[i].directions, HT_SAMPLE_LOG_SLOTS);
-            auto& samples = out.htSamples[size_t(push.tileY + y) * s.width + push.tileX + x];
-            for (uint32_t k = 0; k < n; ++k) {
-              const GpuHtSample& g = log[i * HT_SAMPLE_LOG_SLOTS + k];
-              samples.push_back({g.dir, g.h, uint64_t(g.candidate.x) | uint64_t(g.candidate.y) << 32, int(g.level),
-                                 g.weight});
-            }
-          }
-      }
+  uint32_t limit = m.batchLimit > 0 ? m.batchLimit : firstBatchLimit(s, m.envOrder, m.occluders);
+  for (uint32_t y = 0; y < uint32_t(s.height); y += tileH)
+    for (uint32_t x = 0; x < uint32_t(s.width); x += tileW) {
+      GpuPush push = tilePush(s, x, y, tileW, tileH);
+      m.bindScratch(s, push);
+      m.renderTile(s, push, limit, out);
+      m.readTile(s, push, out);
       ++out.tiles;
       if (s.progress) {
         const int percent = int(100.0 * out.tiles / tileCount);
@@ -563,8 +619,8 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
         }
       }
     }
+  out.batchLimit = limit;
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  out.gpuSeconds = m.queries ? gpuNs * 1e-9 : -1.0;
   return out;
 }
 

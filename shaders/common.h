@@ -43,7 +43,7 @@
 #define HT_METHOD_WIS_BIASED 11
 #define HT_METHOD_TSIS 12
 #define HT_METHOD_RIS 13
-#define HT_METHOD_ANY 0xFFFFFFFFu  // render.comp.glsl's specialization constant: use GpuPush::method
+#define HT_METHOD_ANY 0xFFFFFFFFu  // pixel.glsl's specialization constant: use GpuPush::method
 #define HT_SPEC_METHOD 0           // its constant_id
 
 // GpuPush::sampler: the values of ht::SamplerKind (host/sampler.h).

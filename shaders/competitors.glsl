@@ -1,7 +1,5 @@
 // The `ris` (host/ris.cpp), `tsis` (host/tsis.cpp), `wis` and `wis-biased`
-// (host/wis.cpp) estimates, draw for draw as on the CPU. Part of
-// render.comp.glsl: included after its helpers (Shading, reflected,
-// accvec3, gShadowRays).
+// (host/wis.cpp) estimates, draw for draw as on the CPU.
 //
 // tsis and wis need doubles (tsis's summed-area table is one: differences
 // of a float table would lose dim pixels next to a sun; wis's tree sums
@@ -10,13 +8,13 @@
 #ifndef HT_COMPETITORS_GLSL
 #define HT_COMPETITORS_GLSL
 
+#include "shading.glsl"
+
 #if HT_FP64
 #define accreal double
 #else
 #define accreal float
 #endif
-
-precise float luminance(vec3 c) { return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b; }
 
 // ---------------------------------------------------------------- ris
 

@@ -16,11 +16,8 @@
 #ifndef HT_HT_GLSL
 #define HT_HT_GLSL
 
-#include "bindings.glsl"
-#include "bsdf.glsl"
-#include "environment.glsl"
-#include "sampler.glsl"
-#include "scene.glsl"
+#include "ht_table.glsl"
+#include "shading.glsl"
 
 #define HT_MAX_FRONTIER (12 + 3 * HT_MAX_BUDGET_REFINEMENTS)
 
@@ -30,12 +27,8 @@ const uint kHtPermutations[24] = uint[24](0xE4u, 0xB4u, 0xD8u, 0x78u, 0x9Cu, 0x6
                                           0x87u, 0x27u, 0x4Bu, 0x1Bu);
 
 // Float constants by their bits: the C++ literals round once, GLSL's may round twice.
-#define kHtLumR uintBitsToFloat(0x3E59B3D0u)  // 0.2126f
-#define kHtLumG uintBitsToFloat(0x3F371759u)  // 0.7152f
-#define kHtLumB uintBitsToFloat(0x3D93DD98u)  // 0.0722f
 #define kHtCapMargin uintBitsToFloat(0x3A83126Fu)     // 1e-3f
 #define kHtPlaneCapAngle uintBitsToFloat(0x3FC8EF16u) // 0.5f * kPi - 1e-3f
-#define kHtTangentEpsilon uintBitsToFloat(0x358637BDu) // 1e-6f
 #if HT_FP64
 const double kHtFourPi = 12.566370614359172953850573533118lf;
 #else
@@ -52,8 +45,6 @@ vec2 htCosSinRadius(uint i) {
   return scene.htCosSinRadius[i >> HT_HT_VEC2_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC2_CHUNK_SHIFT) - 1u)];
 }
 
-precise float htLuminance(vec3 c) { return kHtLumR * c.r + kHtLumG * c.g + kHtLumB * c.b; }
-
 // Everything HT needs at one shading point (HtPoint), all in the HEALPix frame.
 struct HtPoint {
   GpuMaterial material;
@@ -67,10 +58,7 @@ struct HtPoint {
   hreal area;  // measure one candidate sequence covers
   hreal s;     // samples per unit of h
   hreal u;     // the pixel's offset
-  // Table bounds.
-  uint tableOffset;
-  uint tableBin;  // outgoing elevation bin
-  vec3 tableX, tableY;
+  HtTableFrame table;  // table bounds
 };
 HtPoint ht;
 vec3 gHtCapAxis[HT_MAX_CAPS];
@@ -80,7 +68,6 @@ uint gHtNodes = 0u;
 uint gHtSamples = 0u;
 uint gHtMaterial = 0u;  // index of the shading point's material (table bounds)
 
-#include "ht_table.glsl"
 
 // cos(max(0, angle(a, b) - radius)) and cos(min(pi, angle(a, b) + radius)).
 precise float htCosClosest(vec3 a, vec3 b, float cosR, float sinR) {
@@ -125,8 +112,8 @@ uint64_t htFaceDigits(uint seed) {
 
 precise float htBrdfValue(vec3 dirHp) {
   if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u)
-    return htTableAverage(vec3(dot3(dirHp, ht.tableX), dot3(dirHp, ht.tableY), dot3(dirHp, ht.n)));
-  return htLuminance(evalBsdf(ht.material, ht.woLocal, toLocal(ht.frame, dirHp)));
+    return htTableAverage(ht.table, vec3(dot3(dirHp, ht.table.x), dot3(dirHp, ht.table.y), dot3(dirHp, ht.n)));
+  return luminance(evalBsdf(ht.material, ht.woLocal, toLocal(ht.frame, dirHp)));
 }
 
 // HtPoint::brdfBound: each lobe at the smallest angle the node's cone allows.
@@ -135,14 +122,14 @@ precise float htBrdfBound(uint i) {
   vec2 csr = htCosSinRadius(i);
   float cr = csr.x, sr = csr.y;
   if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u)
-    return htTableBound(vec3(dot3(axis, ht.tableX), dot3(axis, ht.tableY), dot3(axis, ht.n)), cr, sr);
+    return htTableBound(ht.table, vec3(dot3(axis, ht.table.x), dot3(axis, ht.table.y), dot3(axis, ht.n)), cr, sr);
   float cosMax = htCosClosest(axis, ht.n, cr, sr);
   if (cosMax <= 0.0 || ht.woLocal.z <= 0.0) return 0.0;
-  precise float b = htLuminance(ht.material.diffuse) * kInvPi * cosMax;
+  precise float b = luminance(ht.material.diffuse) * kInvPi * cosMax;
   if (ht.material.type == HT_MATERIAL_PHONG) {
     float c = htCosClosest(axis, ht.mirror, cr, sr);
     if (c > 0.0) {
-      precise float lobe = htLuminance(ht.material.specular) * (ht.material.exponent + 2.0) * 0.5 * kInvPi *
+      precise float lobe = luminance(ht.material.specular) * (ht.material.exponent + 2.0) * 0.5 * kInvPi *
                            pow(c, ht.material.exponent) * cosMax;
       b = b + lobe;
     }
@@ -153,7 +140,7 @@ precise float htBrdfBound(uint i) {
     precise float dMax = a2 / (kPi * d * d);
     precise float cosHalf = sqrt(max(0.0, 0.5 * (1.0 + htCosFarthest(axis, ht.wo, cr, sr))));
     precise float m = 1.0 - cosHalf;
-    precise float f0 = htLuminance(ht.material.specular);
+    precise float f0 = luminance(ht.material.specular);
     precise float fresnel = f0 + (1.0 - f0) * m * m * m * m * m;
     precise float lobe = fresnel * dMax * ht.brdfG1 / (4.0 * ht.woLocal.z);
     b = b + lobe;
@@ -242,7 +229,7 @@ void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
   precise hreal face = kHtFourPi / 12.0;
   precise hreal sphere = 12.0 * face;
   ht.area = (ht.flags & HT_FLAG_SPHERE_SEQUENCE) != 0u ? sphere : face;
-  if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u) htTableInit();
+  if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u) ht.table = htTableFrame(gHtMaterial, ht.woLocal, ht.wo, ht.n, ht.frame.s);
   ht.capCount = 0u;
   if ((ht.flags & HT_FLAG_VISIBILITY) != 0u) {
     // Seen from the shadow rays' origin, as on the CPU.

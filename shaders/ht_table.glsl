@@ -1,11 +1,15 @@
 // Tabulated BRDF bounds of the ht* methods (host/brdf_table.cpp), read from
 // GpuScene::htBrdfTables: per material, the averages then the max pyramid,
 // each per outgoing-elevation bin (BrdfTable's layout, levels back to back).
-// Included by ht.glsl after HtPoint.
 #ifndef HT_HT_TABLE_GLSL
 #define HT_HT_TABLE_GLSL
 
+#include "bindings.glsl"
+#include "healpix.glsl"
+#include "math.glsl"
+
 #define kHtHalfPi uintBitsToFloat(0x3FC90FDBu)  // 0.5f * kPi
+#define kHtTangentEpsilon uintBitsToFloat(0x358637BDu)  // 1e-6f
 
 // atan2, acos and asin in double where the device has it (healpix.glsl's
 // atan2d), rounded to float: the driver's float versions are too coarse to
@@ -26,29 +30,39 @@ float htAcos(float z) { return acos(z); }
 float htAsin(float z) { return asin(z); }
 #endif
 
-float htTable(uint i) { return scene.htBrdfTables.v[ht.tableOffset + i]; }
+// One shading point's view of its material's table.
+struct HtTableFrame {
+  uint offset;  // the material's table
+  uint bin;     // outgoing elevation bin
+  vec3 x, y;    // tangent frame (x towards wo), the table's azimuth 0
+};
+
+float htTable(HtTableFrame f, uint i) { return scene.htBrdfTables.v[f.offset + i]; }
 
 // BrdfTable::maxAt.
-float htTableMax(uint level, int it, int ip) {
+float htTableMax(HtTableFrame f, uint level, int it, int ip) {
   int t = HT_BRDF_TABLE_THETA >> level, p = HT_BRDF_TABLE_PHI >> level;
   uint offset = uint(HT_BRDF_TABLE_CELLS);  // the averages come first
   for (uint l = 0u; l < level; ++l)
     offset += uint(HT_BRDF_TABLE_THETA_O * (HT_BRDF_TABLE_THETA >> l) * (HT_BRDF_TABLE_PHI >> l));
-  return htTable(offset + uint((int(ht.tableBin) * t + clamp(it, 0, t - 1)) * p + clamp(ip, 0, p - 1)));
+  return htTable(f, offset + uint((int(f.bin) * t + clamp(it, 0, t - 1)) * p + clamp(ip, 0, p - 1)));
 }
 
-void htTableInit() {
-  ht.tableOffset = gHtMaterial * uint(HT_BRDF_TABLE_FLOATS);
-  float thetaO = htAcos(clamp(ht.woLocal.z, -1.0, 1.0));
+// `fallbackX`: the tangent to use where wo is along the normal.
+HtTableFrame htTableFrame(uint material, vec3 woLocal, vec3 wo, vec3 n, vec3 fallbackX) {
+  HtTableFrame f;
+  f.offset = material * uint(HT_BRDF_TABLE_FLOATS);
+  float thetaO = htAcos(clamp(woLocal.z, -1.0, 1.0));
   precise float x = thetaO / kHtHalfPi * float(HT_BRDF_TABLE_THETA_O);
-  ht.tableBin = uint(clamp(int(x), 0, HT_BRDF_TABLE_THETA_O - 1));
-  precise vec3 tangent = ht.wo - dot3(ht.wo, ht.n) * ht.n;
-  ht.tableX = length3(tangent) > kHtTangentEpsilon ? normalize3(tangent) : ht.frame.s;
-  ht.tableY = cross3(ht.n, ht.tableX);
+  f.bin = uint(clamp(int(x), 0, HT_BRDF_TABLE_THETA_O - 1));
+  precise vec3 tangent = wo - dot3(wo, n) * n;
+  f.x = length3(tangent) > kHtTangentEpsilon ? normalize3(tangent) : fallbackX;
+  f.y = cross3(n, f.x);
+  return f;
 }
 
 // BrdfTable::bound.
-precise float htTableBound(vec3 wi, float cosRadius, float sinRadius) {
+precise float htTableBound(HtTableFrame f, vec3 wi, float cosRadius, float sinRadius) {
   precise float dTheta = kHtHalfPi / float(HT_BRDF_TABLE_THETA);
   precise float dPhi = kPi / float(HT_BRDF_TABLE_PHI);
   float radius = htAtan2(sinRadius, cosRadius);
@@ -79,12 +93,12 @@ precise float htTableBound(vec3 wi, float cosRadius, float sinRadius) {
     ++level;
   float m = 0.0;
   for (int i = i0 >> level; i <= i1 >> level; ++i)
-    for (int j = j0 >> level; j <= j1 >> level; ++j) m = max(m, htTableMax(level, i, j));
+    for (int j = j0 >> level; j <= j1 >> level; ++j) m = max(m, htTableMax(f, level, i, j));
   return m;
 }
 
 // BrdfTable::average.
-precise float htTableAverage(vec3 wi) {
+precise float htTableAverage(HtTableFrame f, vec3 wi) {
   if (wi.z <= 0.0) return 0.0;
   precise float dTheta = kHtHalfPi / float(HT_BRDF_TABLE_THETA);
   precise float dPhi = kPi / float(HT_BRDF_TABLE_PHI);
@@ -93,13 +107,13 @@ precise float htTableAverage(vec3 wi) {
   int i = int(floor(x)), j = int(floor(y));
   precise float fx = x - float(i);
   precise float fy = y - float(j);
-  uint base = ht.tableBin * uint(HT_BRDF_TABLE_THETA);
+  uint base = f.bin * uint(HT_BRDF_TABLE_THETA);
   int ia = clamp(i, 0, HT_BRDF_TABLE_THETA - 1), ib = clamp(i + 1, 0, HT_BRDF_TABLE_THETA - 1);
   int ja = clamp(j, 0, HT_BRDF_TABLE_PHI - 1), jb = clamp(j + 1, 0, HT_BRDF_TABLE_PHI - 1);
-  float a00 = htTable((base + uint(ia)) * uint(HT_BRDF_TABLE_PHI) + uint(ja));
-  float a01 = htTable((base + uint(ia)) * uint(HT_BRDF_TABLE_PHI) + uint(jb));
-  float a10 = htTable((base + uint(ib)) * uint(HT_BRDF_TABLE_PHI) + uint(ja));
-  float a11 = htTable((base + uint(ib)) * uint(HT_BRDF_TABLE_PHI) + uint(jb));
+  float a00 = htTable(f, (base + uint(ia)) * uint(HT_BRDF_TABLE_PHI) + uint(ja));
+  float a01 = htTable(f, (base + uint(ia)) * uint(HT_BRDF_TABLE_PHI) + uint(jb));
+  float a10 = htTable(f, (base + uint(ib)) * uint(HT_BRDF_TABLE_PHI) + uint(ja));
+  float a11 = htTable(f, (base + uint(ib)) * uint(HT_BRDF_TABLE_PHI) + uint(jb));
   return (1.0 - fx) * ((1.0 - fy) * a00 + fy * a01) + fx * ((1.0 - fy) * a10 + fy * a11);
 }
 

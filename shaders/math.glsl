@@ -20,6 +20,11 @@ precise vec3 normalize3(vec3 v) {
 precise vec3 cross3(vec3 x, vec3 y) {
   return vec3(x.y * y.z - y.y * x.z, x.z * y.x - y.z * x.x, x.x * y.y - y.x * x.y);
 }
+// ht::luminance, with the C++ float constants by their bits (a GLSL literal
+// may round twice).
+precise float luminance(vec3 c) {
+  return uintBitsToFloat(0x3E59B3D0u) * c.r + uintBitsToFloat(0x3F371759u) * c.g + uintBitsToFloat(0x3D93DD98u) * c.b;
+}
 // std::copysign(magnitude, sign), signed zeros included.
 float copySign(float magnitude, float sign) {
   return uintBitsToFloat((floatBitsToUint(magnitude) & 0x7FFFFFFFu) | (floatBitsToUint(sign) & 0x80000000u));

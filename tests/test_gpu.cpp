@@ -104,7 +104,7 @@ RenderSettings settings(Method method, int spp, uint32_t seed, int width = 80, i
 
 std::vector<std::string> spirvFiles() {
   std::vector<std::string> files;
-  for (const char* name : {"render", "healpix_test"})
+  for (const char* name : {"baselines", "ht", "competitors", "healpix_test"})
     for (const char* variant : {"fp64", "fp32"}) files.push_back(kShaderDir + "/" + name + "." + variant + ".spv");
   return files;
 }
@@ -133,8 +133,10 @@ TEST(GpuShaders, EveryFloatOperationIsPrecise) {
 }
 
 TEST(GpuShaders, InterfaceMatchesCommonHeader) {
-  for (const char* variant : {"fp64", "fp32"}) {
-    vk::SpirvInterface s = vk::reflectSpirv(vk::loadSpirv(kShaderDir + "/render." + variant + ".spv"));
+  for (const std::string& path : spirvFiles()) {
+    if (path.find("healpix_test") != std::string::npos) continue;
+    SCOPED_TRACE(path);
+    vk::SpirvInterface s = vk::reflectSpirv(vk::loadSpirv(path));
     EXPECT_EQ(s.pushConstantSize, sizeof(gpu::GpuPush));
     EXPECT_EQ(s.localSize, (std::array<uint32_t, 3>{HT_WORKGROUP_SIZE, HT_WORKGROUP_SIZE, 1}));
     for (const vk::SpirvInterface::Binding& b : s.bindings) {

@@ -1,0 +1,152 @@
+// The frame of every method's compute shader: one invocation per pixel of
+// the current tile, its estimate spread over batches (one dispatch each) so
+// that no dispatch runs long. A shader's main() is
+//   if (!pixelStart(job)) return;            // outside the tile
+//   if (job.shade) { ...begin on job.fresh, continue while !job.st.done... }
+//   pixelEnd(job, estimate);
+// and the state between batches is GpuPixelState (shaders/common.h).
+#ifndef HT_PIXEL_GLSL
+#define HT_PIXEL_GLSL
+
+#include "shading.glsl"
+
+layout(local_size_x = HT_WORKGROUP_SIZE, local_size_y = HT_WORKGROUP_SIZE) in;
+
+// The method as a specialization constant (HT_METHOD_*; HT_METHOD_ANY: the
+// push constant's): lavapipe compiles every branch of a shader, so each
+// method gets a pipeline that holds its own code only.
+layout(constant_id = HT_SPEC_METHOD) const uint kSpecializedMethod = HT_METHOD_ANY;
+
+#if HT_FP64
+accvec3 sumFromBits(uint64_t b[3]) {
+  return accvec3(uint64BitsToDouble(b[0]), uint64BitsToDouble(b[1]), uint64BitsToDouble(b[2]));
+}
+void sumToBits(accvec3 v, out uint64_t b[3]) {
+  b[0] = doubleBitsToUint64(v.x);
+  b[1] = doubleBitsToUint64(v.y);
+  b[2] = doubleBitsToUint64(v.z);
+}
+hreal hrealFromBits(uint64_t b) { return uint64BitsToDouble(b); }
+uint64_t hrealToBits(hreal v) { return doubleBitsToUint64(v); }
+#else
+accvec3 sumFromBits(uint64_t b[3]) {
+  return accvec3(uintBitsToFloat(uint(b[0])), uintBitsToFloat(uint(b[1])), uintBitsToFloat(uint(b[2])));
+}
+void sumToBits(accvec3 v, out uint64_t b[3]) {
+  b[0] = uint64_t(floatBitsToUint(v.x));
+  b[1] = uint64_t(floatBitsToUint(v.y));
+  b[2] = uint64_t(floatBitsToUint(v.z));
+}
+hreal hrealFromBits(uint64_t b) { return uintBitsToFloat(uint(b)); }
+uint64_t hrealToBits(hreal v) { return uint64_t(floatBitsToUint(v)); }
+#endif
+
+struct PixelJob {
+  uint slot;       // index in the tile's buffers
+  uint method;     // HT_METHOD_*
+  bool shade;      // the camera ray hit the scene
+  bool fresh;      // first batch: the state starts here
+  bool cut;        // a loop stopped before it should have
+  vec3 position, normal, wo;
+  uint materialIndex;
+  Shading sh;
+  GpuPixelState st;
+  vec3 background;  // radiance of a ray that misses the scene
+};
+
+// Sets up the invocation's pixel: its camera ray, shading point and state
+// (fresh, seeded as pixelStream(x, y, width) on the CPU, or the previous
+// batch's). False outside the tile.
+bool pixelStart(out PixelJob job) {
+  uvec2 local = gl_GlobalInvocationID.xy;
+  if (local.x >= pc.tileWidth || local.y >= pc.tileHeight) return false;
+  uint x = pc.tileX + local.x;
+  uint y = pc.tileY + local.y;
+  job.slot = local.y * pc.tileWidth + local.x;
+  job.method = kSpecializedMethod == HT_METHOD_ANY ? pc.method : kSpecializedMethod;
+  job.cut = false;
+  job.background = vec3(0.0);
+
+  precise float px = float(x) + 0.5;
+  precise float py = float(y) + 0.5;
+  Ray ray = cameraRay(px, py);
+  Hit hit;
+  job.shade = intersectScene(ray, 0.0, kInfinity, hit);
+  job.fresh = pc.batch == 0u;
+  if (!job.shade) {
+    job.background = envEval(ray.dir);
+    job.st.done = 1u;
+    sumToBits(accvec3(0.0), job.st.sum);
+    return true;
+  }
+  job.position = hit.position;
+  job.normal = hit.normal;
+  job.wo = -ray.dir;
+  job.materialIndex = hit.material;
+  job.sh.frame = makeFrame(hit.normal);
+  job.sh.woLocal = toLocal(job.sh.frame, job.wo);
+  job.sh.origin = offsetRayOrigin(hit.position, hit.normal);
+  job.sh.material = materials[hit.material];
+  if (job.fresh) {
+    job.st.rng = rngInit(pc.seed, y * pc.width + x);
+    job.st.next = 0u;
+    job.st.directions = 0u;
+    job.st.shadowRays = 0u;
+    job.st.htNodes = 0u;
+    job.st.done = 0u;
+    job.st.samplerSeed = rngNextUint(job.st.rng);  // estimateDirect's first draw
+    job.st.pad = 0u;
+    sumToBits(accvec3(0.0), job.st.sum);
+    for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) job.st.htPathMin[l] = 0.0;
+  } else {
+    job.st = pc.pixelState.s[job.slot];
+  }
+  gShadowRays = job.st.shadowRays;
+  return true;
+}
+
+Sampler pixelSampler(GpuPixelState st) { return samplerInit(pc.samplerKind, st.samplerSeed); }
+
+// The mean of a finished pixel's spp samples.
+vec3 pixelMean(GpuPixelState st) {
+  precise accvec3 mean = sumFromBits(st.sum) / accvec3(max(pc.spp, 1u));
+  return vec3(mean);
+}
+
+// Mesa's llvmpipe ends every loop of an invocation once its loops have run
+// 65535 iterations in all (gallivm's loop limiter). A loop of a few
+// iterations, run last, tells whether that happened: the host then makes
+// the batches smaller.
+bool loopsWereCut() {
+  uint n = 0u;
+  for (uint i = 0u; i < pc.canaryLoops; ++i) n += 1u + (i & pc.canaryZero);
+  return n != pc.canaryLoops;
+}
+
+// Stores the state for the next batch and the pixel's result; `estimate`
+// counts once the state is done.
+void pixelEnd(PixelJob job, vec3 estimate) {
+  GpuPixel result;
+  result.radiance = job.background;
+  result.shaded = 0u;
+  result.directions = 0u;
+  result.shadowRays = 0u;
+  result.htNodes = 0u;
+  bool done = true;
+  if (job.shade) {
+    GpuPixelState st = job.st;
+    st.shadowRays = gShadowRays;
+    pc.pixelState.s[job.slot] = st;
+    done = st.done != 0u;
+    result.radiance = done ? estimate : vec3(0.0);
+    result.shaded = 1u;
+    result.directions = st.directions;
+    result.shadowRays = st.shadowRays;
+    result.htNodes = st.htNodes;
+  }
+  bool cut = loopsWereCut() || job.cut;
+  result.status = (done ? HT_PIXEL_DONE : 0u) | (cut ? HT_PIXEL_LOOPS_CUT : 0u);
+  pixels[job.slot] = result;
+}
+
+#endif
