@@ -4,7 +4,6 @@
 #include <cmath>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <tuple>
 
 #include <tbb/parallel_for.h>
@@ -70,18 +69,6 @@ BrdfTable::BrdfTable(const Material& m) {
     maxima_.push_back(std::move(coarse));
   }
   levels_ = int(maxima_.size());
-}
-
-const BrdfTable& BrdfTable::get(const Material& m) {
-  using Key = std::tuple<int, float, float, float, float, float, float, float, float>;
-  static std::mutex mutex;
-  static std::map<Key, std::unique_ptr<BrdfTable>> cache;
-  Key key{int(m.type), m.diffuse.r, m.diffuse.g, m.diffuse.b, m.specular.r, m.specular.g, m.specular.b,
-          m.exponent, m.alpha};
-  std::lock_guard lock(mutex);
-  auto& t = cache[key];
-  if (!t) t = std::make_unique<BrdfTable>(m);
-  return *t;
 }
 
 float BrdfTable::maxAt(int level, int k, int it, int ip) const {

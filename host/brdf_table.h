@@ -28,9 +28,6 @@ class BrdfTable {
 
   explicit BrdfTable(const Material& m);
 
-  // Cached per material (tables are built once per process).
-  static const BrdfTable& get(const Material& m);
-
   // Bound of luminance(f cos) over the directions within `radius` of `wi`
   // (local frame: normal +z, wo in the x-z plane with x >= 0), for
   // outgoing elevation thetaO.

@@ -197,17 +197,23 @@ struct GpuRenderer::Impl {
   vk::Buffer pixelState;   // GpuPixelState per tile pixel
   vk::Buffer tsisScratch;  // GpuTsisSlot per region and tile pixel
   vk::Buffer wisScratch;   // HT_WIS_TOP_NODES doubles per tile pixel
-  // ht*: uploaded at their first render, the scene struct uploaded again.
+  // The method's tables, uploaded at their first render (the scene struct
+  // uploaded again), with what they were made from.
   GpuScene scene{};
+  const Scene* hostScene = nullptr;
   int envOrder = 0;
-  std::vector<Material> sceneMaterials;
+  size_t materialCount = 0;
   size_t occluders = 0;
-  bool htGeometry = false, htTables = false;
-  std::vector<vk::Buffer> htBuffers;
+  std::shared_ptr<const HtGeometry> geometry;
+  std::vector<vk::Buffer> geometryBuffers;
+  std::vector<std::shared_ptr<const BrdfTable>> brdfTables;
+  vk::Buffer brdfBuffer;
+  std::shared_ptr<const TsisTable> tsis;
+  vk::Buffer tsisBuffer;
   bool recordHtSamples = false;
   vk::Buffer htSampleLog;
 
-  void prepareHt(const RenderSettings& s);
+  void uploadTables(const RenderSettings& s, const MethodTables& tables);
   void checkMethod(const RenderSettings& s) const;
   std::pair<uint32_t, uint32_t> prepareTiles(const RenderSettings& s);
   void bindScratch(const RenderSettings& s, GpuPush& push) const;
@@ -306,16 +312,6 @@ void GpuRenderer::setScene(const Scene& scene) {
   gs.sphereCount = uint32_t(scene.spheres.size());
   gs.planeCount = uint32_t(scene.planes.size());
   gs.materialCount = uint32_t(scene.materials.size());
-  // tsis: its summed-area table, in doubles (so only where the shader has them).
-  if (ctx.float64 && env.hasLight()) {
-    const std::shared_ptr<const TsisTable> sat = tsisTable(env);
-    vk::Buffer b(ctx, sat->sat.size() * sizeof(double), vk::MemoryUse::DeviceLocal);
-    b.upload(sat->sat.data(), sat->sat.size() * sizeof(double));
-    gs.tsisSat = b.address();
-    gs.tsisLevel = uint32_t(sat->level);
-    m.chunks.push_back(std::move(b));
-  }
-
   std::vector<GpuMaterial> materials;
   for (const Material& mat : scene.materials)
     materials.push_back({uint32_t(mat.type), mat.diffuse, mat.specular, mat.exponent, mat.alpha,
@@ -336,42 +332,63 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.pipeline->setBuffer(HT_BINDING_PLANES, m.planes);
   m.scene = gs;
   m.envOrder = env.order;
-  m.sceneMaterials = scene.materials;
+  m.materialCount = scene.materials.size();
   m.occluders = scene.spheres.size() + scene.planes.size();
-  m.htGeometry = m.htTables = false;
-  m.htBuffers.clear();
+  m.geometry = nullptr;
+  m.geometryBuffers.clear();
+  m.brdfTables.clear();
+  m.brdfBuffer = {};
+  m.tsis = nullptr;
+  m.tsisBuffer = {};
+  m.hostScene = &scene;
   m.hasScene = true;
 }
 
-// The HEALPix geometry (and the BRDF tables) the ht* methods read, uploaded
-// at their first use so that the baselines never build them.
-void GpuRenderer::Impl::prepareHt(const RenderSettings& s) {
-  const bool table = s.options.brdfBounds == MethodOptions::BrdfBounds::Table;
-  if (methodInfo(s.method).family == Family::Ht && methodInfo(s.method).visibility && occluders > HT_MAX_CAPS)
-    throw Error(fmt::format("method {} on the GPU handles at most {} spheres and planes (the scene has {}); "
-                            "use --device cpu", methodName(s.method), HT_MAX_CAPS, occluders));
+// The tables the method reads, uploaded at its first render (and again when
+// they are other tables), so that the other methods never build them.
+void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables& t) {
+  const MethodInfo& info = methodInfo(s.method);
   bool changed = false;
-  if (!htGeometry) {
-    const HtGeometry& g = ht::htGeometry(envOrder);
-    uploadChunked(ctx, g.centers.data(), g.centers.size(), sizeof(glm::vec3), uint64_t(1) << HT_HT_VEC3_CHUNK_SHIFT,
-                  htBuffers, scene.htCenters, "HT node centres");
-    uploadChunked(ctx, g.cosSinRadius.data(), g.cosSinRadius.size(), sizeof(glm::vec2),
-                  uint64_t(1) << HT_HT_VEC2_CHUNK_SHIFT, htBuffers, scene.htCosSinRadius, "HT node radii");
-    static_assert(sizeof(scene.htLevelRadius) == sizeof(g.levelRadius));
-    std::copy(g.levelRadius.begin(), g.levelRadius.end(), scene.htLevelRadius);
-    htGeometry = changed = true;
-  }
-  if (table && !htTables) {
-    std::vector<float> all;
-    for (const Material& mat : sceneMaterials) {
-      std::vector<float> t = BrdfTable::get(mat).flattened();
-      if (t.size() != size_t(HT_BRDF_TABLE_FLOATS)) throw Error("internal: BRDF table size differs from the shaders'");
-      all.insert(all.end(), t.begin(), t.end());
+  if (info.family == Family::Ht) {
+    if (info.visibility && occluders > HT_MAX_CAPS)
+      throw Error(fmt::format("method {} on the GPU handles at most {} spheres and planes (the scene has {}); "
+                              "use --device cpu", methodName(s.method), HT_MAX_CAPS, occluders));
+    if (geometry != t.htGeometry) {
+      const HtGeometry& g = t.geometry();
+      if (g.order != envOrder) throw Error("internal: HT geometry of another order than the map's");
+      geometryBuffers.clear();
+      uploadChunked(ctx, g.centers.data(), g.centers.size(), sizeof(glm::vec3),
+                    uint64_t(1) << HT_HT_VEC3_CHUNK_SHIFT, geometryBuffers, scene.htCenters, "HT node centres");
+      uploadChunked(ctx, g.cosSinRadius.data(), g.cosSinRadius.size(), sizeof(glm::vec2),
+                    uint64_t(1) << HT_HT_VEC2_CHUNK_SHIFT, geometryBuffers, scene.htCosSinRadius, "HT node radii");
+      static_assert(sizeof(scene.htLevelRadius) == sizeof(g.levelRadius));
+      std::copy(g.levelRadius.begin(), g.levelRadius.end(), scene.htLevelRadius);
+      geometry = t.htGeometry;
+      changed = true;
     }
-    vk::Buffer b = uploadArray(ctx, all);
-    scene.htBrdfTables = b.address();
-    htBuffers.push_back(std::move(b));
-    htTables = changed = true;
+    if (s.options.brdfBounds == MethodOptions::BrdfBounds::Table && brdfTables != t.brdfTables) {
+      if (t.brdfTables.size() != materialCount) throw Error("internal: BRDF tables not prepared for every material");
+      std::vector<float> all;
+      for (const auto& table : t.brdfTables) {
+        std::vector<float> f = table->flattened();
+        if (f.size() != size_t(HT_BRDF_TABLE_FLOATS)) throw Error("internal: BRDF table size differs from the shaders'");
+        all.insert(all.end(), f.begin(), f.end());
+      }
+      brdfBuffer = uploadArray(ctx, all);
+      scene.htBrdfTables = brdfBuffer.address();
+      brdfTables = t.brdfTables;
+      changed = true;
+    }
+  }
+  // tsis: its summed-area table, in doubles.
+  if (s.method == Method::Tsis && scene.envHasLight != 0 && tsis != t.tsisTable()) {
+    const TsisTable& sat = *t.tsisTable();
+    tsisBuffer = vk::Buffer(ctx, sat.sat.size() * sizeof(double), vk::MemoryUse::DeviceLocal);
+    tsisBuffer.upload(sat.sat.data(), sat.sat.size() * sizeof(double));
+    scene.tsisSat = tsisBuffer.address();
+    scene.tsisLevel = uint32_t(sat.level);
+    tsis = t.tsis;
+    changed = true;
   }
   if (changed) sceneBuffer.upload(&scene, sizeof(scene));
 }
@@ -586,11 +603,16 @@ void GpuRenderer::Impl::readTile(const RenderSettings& s, const GpuPush& push, G
 }
 
 GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
+  impl_->checkMethod(s);
+  return render(s, prepareTables(*impl_->hostScene, s.method, s.options));
+}
+
+GpuRenderResult GpuRenderer::render(const RenderSettings& s, const MethodTables& tables) {
   Impl& m = *impl_;
   m.checkMethod(s);
   m.usePipeline(s.method);
   const auto start = std::chrono::steady_clock::now();
-  if (methodInfo(s.method).family == Family::Ht) m.prepareHt(s);
+  m.uploadTables(s, tables);
   const auto [tileW, tileH] = m.prepareTiles(s);
 
   GpuRenderResult out;

@@ -84,6 +84,11 @@ class GpuRenderer {
   // Uploads the scene's environment (radiance, max/avg trees), materials
   // and shapes; once per scene.
   void setScene(const Scene& scene);
+  // `tables`: prepareTables of the scene, method and options; uploaded at
+  // the first render that reads them.
+  GpuRenderResult render(const RenderSettings& settings, const MethodTables& tables);
+  // The same, preparing the tables for the scene of setScene (which must
+  // still exist); their time is not in the result's.
   GpuRenderResult render(const RenderSettings& settings);
 
   const GpuDeviceInfo& device() const;

@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
-#include <mutex>
 
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
@@ -77,14 +75,7 @@ glm::vec3 toFloat(const glm::dvec3& v) { return glm::vec3(v); }
 
 }  // namespace
 
-const HtGeometry& htGeometry(int order) {
-  static std::mutex mutex;
-  static std::map<int, std::unique_ptr<HtGeometry>> cache;
-  std::lock_guard lock(mutex);
-  auto& g = cache[order];
-  if (!g) g = buildGeometry(order);
-  return *g;
-}
+std::shared_ptr<const HtGeometry> buildHtGeometry(int order) { return buildGeometry(order); }
 
 Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry, int levels) {
   Cap c{axis, angle, std::cos(angle), {}, {}};
@@ -123,14 +114,11 @@ std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, cons
   return caps;
 }
 
-HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt)
-    : HtPoint(sc, sp, opt, htGeometry(sc.environment.order)) {}
-
-HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt, const HtGeometry& g)
+HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt, const MethodTables& tables)
     : scene(sc),
       env(sc.environment),
       options(opt),
-      geometry(g),
+      geometry(tables.geometry()),
       material(*sp.material),
       frame(glm::normalize(toFloat(sc.environment.toHealpixFrame(sp.normal)))) {
   n = frame.n;
@@ -139,7 +127,7 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt, 
   mirror = reflectAbout(wo, n);
   if (material.type == MaterialType::Ggx) brdfG1 = ggxG1(woLocal, material.alpha);
   if (options.brdfTable) {
-    table = &BrdfTable::get(material);
+    table = &tables.brdfTable(sc, sp.material);
     thetaO = std::acos(std::clamp(woLocal.z, -1.0f, 1.0f));
     glm::vec3 tangent = wo - glm::dot(wo, n) * n;
     tableX = glm::length(tangent) > 1e-6f ? glm::normalize(tangent) : frame.s;
@@ -441,9 +429,9 @@ void HtPoint::visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float
 }
 
 glm::vec3 estimateHt(const Scene& scene, const ShadingPoint& sp, const HtOptions& options, int n, uint32_t pixelSeed,
-                     Rng& rng, PixelSampler& sampler, EstimateCounters& counters) {
+                     Rng& rng, PixelSampler& sampler, EstimateCounters& counters, const MethodTables& tables) {
   if (!scene.environment.hasLight()) return glm::vec3(0.0f);
-  HtPoint ht(scene, sp, options);
+  HtPoint ht(scene, sp, options, tables);
   ht.setBudget(double(n));
   thread_local std::vector<HtSample> samples;
   samples.clear();

@@ -26,6 +26,7 @@
 #include <glm/vec3.hpp>
 
 #include "brdf_table.h"
+#include "tables.h"
 #include "shading.h"
 #include "rng.h"
 #include "sampler.h"
@@ -74,7 +75,7 @@ struct HtGeometry {
   std::array<float, 32> levelRadius{};
   std::array<float, 32> levelCosRadius{}, levelSinRadius{};
 };
-const HtGeometry& htGeometry(int order);
+std::shared_ptr<const HtGeometry> buildHtGeometry(int order);
 
 // A spherical cap of blocked directions (sphere occluder or the far side of
 // a plane), in the HEALPix frame.
@@ -121,9 +122,10 @@ struct HtCounters {
 // Everything HT needs at one shading point.
 class HtPoint {
  public:
-  HtPoint(const Scene& scene, const ShadingPoint& sp, const HtOptions& options);
-  // The same with the geometry already at hand (htGeometry of the map's order).
-  HtPoint(const Scene& scene, const ShadingPoint& sp, const HtOptions& options, const HtGeometry& geometry);
+  // `tables`: the geometry of the map's order, and the material's BRDF
+  // table with options.brdfTable.
+  HtPoint(const Scene& scene, const ShadingPoint& sp, const HtOptions& options, const MethodTables& tables);
+  HtPoint(const Scene&, const ShadingPoint&, const HtOptions&, MethodTables&&) = delete;  // keeps references into it
 
   // Sets the expected sample count n: s = n / C_est.
   void setBudget(double n);
@@ -192,6 +194,7 @@ class HtPoint {
 // candidates from pixelSeed and one draw of rng, each accepted sample's
 // point inside its cell from the sampler.
 glm::vec3 estimateHt(const Scene& scene, const ShadingPoint& sp, const HtOptions& options, int n,
-                     uint32_t pixelSeed, Rng& rng, PixelSampler& sampler, EstimateCounters& counters);
+                     uint32_t pixelSeed, Rng& rng, PixelSampler& sampler, EstimateCounters& counters,
+                     const MethodTables& tables);
 
 }  // namespace ht

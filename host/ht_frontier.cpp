@@ -334,15 +334,13 @@ int frontierBrdfCount(const Frontier& frontier, const FrontierOptions& options, 
 }
 
 glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const FrontierOptions& options, int n,
-                             Rng& rng, PixelSampler& sampler, EstimateCounters& counters) {
+                             Rng& rng, PixelSampler& sampler, EstimateCounters& counters, const MethodTables& tables) {
   const Environment& env = scene.environment;
   if (!env.hasLight() || n <= 0) return glm::vec3(0.0f);
   // The caps are the frontier's own; the point brings bounds and geometry.
   HtOptions htOptions;
   htOptions.budgetRefinements = -1;
-  thread_local const HtGeometry* geometry = nullptr;
-  if (!geometry || geometry->order != env.order) geometry = &htGeometry(env.order);
-  const HtPoint point(scene, sp, htOptions, *geometry);
+  const HtPoint point(scene, sp, htOptions, tables);
   thread_local Frontier frontier;
   frontier.build(point, sp, options, n);
   if (!frontier.shared()) counters.htNodes += uint64_t(12 + 4 * frontier.splits());

@@ -132,6 +132,6 @@ int frontierBrdfCount(const Frontier& frontier, const FrontierOptions& options, 
 
 // HT frontier estimate at a shading point with exactly n directions.
 glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const FrontierOptions& options, int n,
-                             Rng& rng, PixelSampler& sampler, EstimateCounters& counters);
+                             Rng& rng, PixelSampler& sampler, EstimateCounters& counters, const MethodTables& tables);
 
 }  // namespace ht

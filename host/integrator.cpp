@@ -91,16 +91,19 @@ HtOptions htOptionsFor(Method method, const MethodOptions& methodOptions) {
   return options;
 }
 
-void prepareMethod(const Scene& scene, Method method, const MethodOptions& options) {
-  if (methodInfo(method).family == Family::Ht) {
-    htGeometry(scene.environment.order);
-    if (options.brdfBounds == MethodOptions::BrdfBounds::Table)
-      for (const Material& m : scene.materials) BrdfTable::get(m);
-  }
+MethodTables prepareTables(const Scene& scene, Method method, const MethodOptions& options) {
+  MethodTables t;
+  const Environment& env = scene.environment;
+  const Family family = methodInfo(method).family;
+  if (family == Family::Ht || family == Family::Oracle || method == Method::HtFrontier)
+    t.htGeometry = buildHtGeometry(env.order);
+  if (family == Family::Ht && options.brdfBounds == MethodOptions::BrdfBounds::Table)
+    for (const Material& m : scene.materials) t.brdfTables.push_back(std::make_shared<const BrdfTable>(m));
   if (method == Method::Wis || method == Method::WisBiased)
-    healpixNodeCenters(std::clamp(options.wisOrder, 0, std::min(scene.environment.order, WisPoint::kMaxOrder)));
-  if (method == Method::Tsis) tsisTable(scene.environment);
-  if (method == Method::HtFrontier) htGeometry(scene.environment.order);
+    t.wisCenters = std::make_shared<const std::vector<glm::vec3>>(
+        healpixNodeCenters(WisPoint::orderFor(env, options.wisOrder)));
+  if (method == Method::Tsis) t.tsis = std::make_shared<const TsisTable>(buildTsisTable(env));
+  return t;
 }
 
 glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi) {
@@ -109,20 +112,22 @@ glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const g
 }
 
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
-                         EstimateCounters& counters, const MethodOptions& methodOptions) {
+                         EstimateCounters& counters, const MethodTables& tables, const MethodOptions& methodOptions) {
   PixelSampler sampler(methodOptions.sampler, rng.nextUint());
   if (methodInfo(method).family == Family::Ht) {
     uint32_t pixelSeed = rng.nextUint();
-    return estimateHt(scene, sp, htOptionsFor(method, methodOptions), spp, pixelSeed, rng, sampler, counters);
+    return estimateHt(scene, sp, htOptionsFor(method, methodOptions), spp, pixelSeed, rng, sampler, counters, tables);
   }
-  if (method == Method::Oracle) return estimateOracle(scene, sp, spp, methodOptions.oracleOrder, sampler, counters);
+  if (method == Method::Oracle)
+    return estimateOracle(scene, sp, spp, methodOptions.oracleOrder, tables.geometry(), sampler, counters);
   if (method == Method::Wis || method == Method::WisBiased)
-    return estimateWis(scene, sp, spp, methodOptions.wisOrder, method == Method::WisBiased, sampler, counters);
-  if (method == Method::Tsis) return estimateTsis(scene, sp, spp, sampler, counters);
+    return estimateWis(scene, sp, spp, methodOptions.wisOrder, method == Method::WisBiased, tables.wis(), sampler,
+                       counters);
+  if (method == Method::Tsis) return estimateTsis(scene, sp, spp, tables.tsisTable(), sampler, counters);
   if (method == Method::HtFrontier) {
     FrontierOptions options;
     options.refinements = methodOptions.frontierRefinements;
-    return estimateHtFrontier(scene, sp, options, spp, rng, sampler, counters);
+    return estimateHtFrontier(scene, sp, options, spp, rng, sampler, counters, tables);
   }
   if (method == Method::Ris) return estimateRis(scene, sp, spp, methodOptions.risCandidates, sampler, counters);
   const Shading sh(scene, sp, counters);

@@ -16,6 +16,7 @@
 #include "sampler.h"
 #include "scene.h"
 #include "shading.h"
+#include "tables.h"
 
 namespace ht {
 
@@ -64,9 +65,10 @@ struct MethodOptions {
 // The HT traversal's options for one of the `ht*` methods.
 HtOptions htOptionsFor(Method method, const MethodOptions& options);
 
-// Builds the per-process tables a method uses (HEALPix geometry, BRDF
-// tables), so that timing a render does not include them.
-void prepareMethod(const Scene& scene, Method method, const MethodOptions& options);
+// The tables `method` reads at every shading point of `scene` (HEALPix
+// geometry, BRDF tables, wis's node centres, tsis's summed-area table);
+// built before a render so that its time leaves them out.
+MethodTables prepareTables(const Scene& scene, Method method, const MethodOptions& options = {});
 
 // f(wo, wi) cos+(n, wi) V(x, wi): the integrand without the radiance.
 glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi);
@@ -74,8 +76,8 @@ glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const g
 // Mean of `spp` one-sample estimates (mis: one environment and one BRDF
 // direction per sample, power heuristic); for the HT methods, one traversal
 // with `spp` expected samples. The pixel's sample points are seeded by the
-// first draw from rng.
+// first draw from rng. `tables`: prepareTables of the same method and options.
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
-                         EstimateCounters& counters, const MethodOptions& options = {});
+                         EstimateCounters& counters, const MethodTables& tables, const MethodOptions& options = {});
 
 }  // namespace ht

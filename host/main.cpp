@@ -227,7 +227,7 @@ int runRender(const RenderOptions& o) {
       o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
   // One-time tables (HEALPix geometry, BRDF tables) are built here, outside the render timing.
   t0 = std::chrono::steady_clock::now();
-  prepareMethod(scene, rs.method, rs.options);
+  const MethodTables tables = prepareTables(scene, rs.method, rs.options);
   double tPrepare = secondsSince(t0);
   RenderResult r;
   double tUpload = 0.0, tGpu = -1.0;
@@ -235,11 +235,11 @@ int runRender(const RenderOptions& o) {
     t0 = std::chrono::steady_clock::now();
     gpu->setScene(scene);
     tUpload = secondsSince(t0);
-    GpuRenderResult g = gpu->render(rs);
+    GpuRenderResult g = gpu->render(rs, tables);
     r = std::move(g.result);
     tGpu = g.gpuSeconds;
   } else {
-    r = renderCpu(scene, rs);
+    r = renderCpu(scene, rs, tables);
   }
 
   t0 = std::chrono::steady_clock::now();

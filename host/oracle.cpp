@@ -4,6 +4,7 @@
 #include <array>
 #include <vector>
 
+#include "error.h"
 #include "healpix.h"
 #include "ht.h"
 #include "sampling.h"
@@ -117,15 +118,15 @@ std::vector<Cap> darkCaps(const Scene& scene, const ShadingPoint& sp, const HtGe
 
 }  // namespace
 
-glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, int order, PixelSampler& sampler,
-                         EstimateCounters& counters) {
+glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, int order, const HtGeometry& geometry,
+                         PixelSampler& sampler, EstimateCounters& counters) {
   const Environment& env = scene.environment;
   if (!env.hasLight()) return glm::vec3(0.0f);
   const int k = std::clamp(order, 0, env.order);
   const int finest = env.order + kVirtualLevels;
   const uint64_t nodes = healpix::pixelCount(k);
   const Frame frame(sp.normal);
-  const HtGeometry& geometry = htGeometry(env.order);
+  if (geometry.order != env.order) throw Error("internal: oracle geometry of another order than the map's");
   const Point point{scene,   sp, geometry, darkCaps(scene, sp, geometry), frame, frame.toLocal(sp.wo),
                     offsetRayOrigin(sp.position, sp.normal), counters};
 

@@ -16,7 +16,10 @@
 
 namespace ht {
 
-glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, int order, PixelSampler& sampler,
-                         EstimateCounters& counters);
+struct HtGeometry;
+
+// `geometry`: buildHtGeometry of the map's order.
+glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, int order, const HtGeometry& geometry,
+                         PixelSampler& sampler, EstimateCounters& counters);
 
 }  // namespace ht

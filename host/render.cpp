@@ -13,6 +13,14 @@
 namespace ht {
 
 RenderResult renderCpu(const Scene& scene, const RenderSettings& s) {
+  const auto start = std::chrono::steady_clock::now();
+  const MethodTables tables = prepareTables(scene, s.method, s.options);
+  RenderResult result = renderCpu(scene, s, tables);
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+RenderResult renderCpu(const Scene& scene, const RenderSettings& s, const MethodTables& tables) {
   auto start = std::chrono::steady_clock::now();
   RenderResult result;
   result.image.width = s.width;
@@ -43,7 +51,7 @@ RenderResult renderCpu(const Scene& scene, const RenderSettings& s) {
         ShadingPoint sp{hit.position, hit.normal, -ray.dir, &scene.materials[hit.material], hit.flat};
         Rng rng(s.seed, pixelStream(x, y, s.width));
         const uint64_t before = local.counters.directions;
-        out = estimateDirect(scene, sp, s.method, s.spp, rng, local.counters, s.options);
+        out = estimateDirect(scene, sp, s.method, s.spp, rng, local.counters, tables, s.options);
         if (s.pixelCounts) result.pixelDirections[size_t(y) * s.width + x] = uint32_t(local.counters.directions - before);
         ++local.shaded;
       }

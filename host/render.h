@@ -34,6 +34,9 @@ struct RenderResult {
 // Random stream of a pixel: the same for every method, device and thread count.
 inline uint32_t pixelStream(int x, int y, int width) { return uint32_t(y) * uint32_t(width) + uint32_t(x); }
 
+// `tables`: prepareTables of the settings' method and options.
+RenderResult renderCpu(const Scene& scene, const RenderSettings& settings, const MethodTables& tables);
+// The same, building the tables first (their time counted in the render's).
 RenderResult renderCpu(const Scene& scene, const RenderSettings& settings);
 
 }  // namespace ht

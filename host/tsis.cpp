@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <array>
-#include <cstring>
-#include <mutex>
 
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
@@ -13,43 +11,6 @@
 
 namespace ht {
 namespace {
-
-// Identifies an environment well enough that a stale table is never reused:
-// its address and buffers, shape, yaw, total and a checksum of the tree's top
-// levels (which change when any pixel's luminance changes noticeably).
-struct EnvKey {
-  const void* env = nullptr;
-  const void* radiance = nullptr;
-  const void* tree = nullptr;
-  size_t size = 0;
-  int order = -1;
-  int level = -1;
-  float yaw = 0.0f;
-  double total = 0.0;
-  uint64_t checksum = 0;
-
-  bool operator==(const EnvKey&) const = default;
-};
-
-EnvKey keyOf(const Environment& env) {
-  EnvKey k;
-  k.env = &env;
-  k.radiance = env.radiance.data();
-  k.tree = env.tree.avgv.data();
-  k.size = env.radiance.size();
-  k.order = env.order;
-  k.yaw = env.yawRadians;
-  k.total = env.tree.total();
-  const size_t n = std::min(env.tree.avgv.size(), size_t(MaxAvgTree::levelOffset(std::min(env.order, 3) + 1)));
-  uint64_t h = 1469598103934665603ull;  // FNV-1a over the bits of the top levels
-  for (size_t i = 0; i < n; ++i) {
-    uint32_t bits;
-    std::memcpy(&bits, &env.tree.avgv[i], sizeof bits);
-    h = (h ^ bits) * 1099511628211ull;
-  }
-  k.checksum = h;
-  return k;
-}
 
 // First k in [lo, hi) with cum(k) > target for a non-decreasing cum; hi if none.
 template <class Cum>
@@ -85,34 +46,9 @@ TsisTable buildTsisTable(const Environment& env, int maxLevel) {
   return t;
 }
 
-std::shared_ptr<const TsisTable> tsisTable(const Environment& env, int maxLevel) {
-  EnvKey key = keyOf(env);
-  key.level = std::clamp(std::min(env.order, maxLevel), 0, TsisTable::kMaxLevel);
-  thread_local EnvKey lastKey;
-  thread_local std::shared_ptr<const TsisTable> last;
-  if (last && key == lastKey) return last;
-  static std::mutex mutex;
-  static std::vector<std::pair<EnvKey, std::shared_ptr<const TsisTable>>> cache;  // most recent last
-  constexpr size_t kCapacity = 8;
-  std::lock_guard lock(mutex);
-  auto it = std::find_if(cache.begin(), cache.end(), [&](const auto& e) { return e.first == key; });
-  std::shared_ptr<const TsisTable> table;
-  if (it != cache.end()) {
-    table = it->second;
-    cache.erase(it);
-  } else {
-    table = std::make_shared<const TsisTable>(buildTsisTable(env, maxLevel));
-  }
-  cache.emplace_back(key, table);
-  if (cache.size() > kCapacity) cache.erase(cache.begin());
-  lastKey = key;
-  last = table;
-  return table;
-}
-
-TsisPoint::TsisPoint(const Environment& env, const Material& m, const glm::vec3& normalWorld,
-                     const glm::vec3& woWorld, int maxRegions, int maxSatLevel)
-    : env_(env), table_(tsisTable(env, maxSatLevel)) {
+TsisPoint::TsisPoint(const Environment& env, std::shared_ptr<const TsisTable> table, const Material& m,
+                     const glm::vec3& normalWorld, const glm::vec3& woWorld, int maxRegions)
+    : env_(env), table_(std::move(table)) {
   const TsisTable& t = *table_;
   const HealpixFrameBrdf brdf(env, m, normalWorld, woWorld);
   const double floor = double(kBrdfFloor) * brdf.scale();
@@ -273,11 +209,12 @@ double TsisPoint::pdf(const glm::vec3& worldDir) const {
   return prob / env_.pixelSolidAngle();
 }
 
-glm::vec3 estimateTsis(const Scene& scene, const ShadingPoint& sp, int spp, PixelSampler& sampler, EstimateCounters& counters) {
+glm::vec3 estimateTsis(const Scene& scene, const ShadingPoint& sp, int spp, const std::shared_ptr<const TsisTable>& table,
+                       PixelSampler& sampler, EstimateCounters& counters) {
   const Environment& env = scene.environment;
   if (!env.hasLight() || spp <= 0) return glm::vec3(0.0f);
   const Material& mat = *sp.material;
-  TsisPoint tsis(env, mat, sp.normal, sp.wo);
+  TsisPoint tsis(env, table, mat, sp.normal, sp.wo);
   if (tsis.empty()) return glm::vec3(0.0f);
   const Frame frame(sp.normal);
   const glm::vec3 woLocal = frame.toLocal(sp.wo);

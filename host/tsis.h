@@ -54,9 +54,6 @@ struct TsisTable {
   }
 };
 TsisTable buildTsisTable(const Environment& env, int maxLevel = TsisTable::kMaxLevel);
-// Cached by environment (its address, buffers, order, yaw and a checksum of
-// its top tree levels) and level.
-std::shared_ptr<const TsisTable> tsisTable(const Environment& env, int maxLevel = TsisTable::kMaxLevel);
 
 struct TsisRegion {
   int face;
@@ -78,8 +75,9 @@ class TsisPoint {
   static constexpr int kDefaultRegions = 32;
   static constexpr float kBrdfFloor = 1e-3f;  // BRDF weight >= this x HealpixFrameBrdf::scale()
 
-  TsisPoint(const Environment& env, const Material& m, const glm::vec3& normalWorld, const glm::vec3& woWorld,
-            int maxRegions = kDefaultRegions, int maxSatLevel = TsisTable::kMaxLevel);
+  // `table`: buildTsisTable of this environment.
+  TsisPoint(const Environment& env, std::shared_ptr<const TsisTable> table, const Material& m,
+            const glm::vec3& normalWorld, const glm::vec3& woWorld, int maxRegions = kDefaultRegions);
 
   bool empty() const { return !(total_ > 0.0); }
   const std::vector<TsisRegion>& regions() const { return regions_; }
@@ -101,6 +99,7 @@ class TsisPoint {
 // The `tsis` estimate: `spp` points, one per sample (with the stratified
 // sampler, one scrambled (0,2)-sequence), warped through the two stages,
 // f / p each.
-glm::vec3 estimateTsis(const Scene& scene, const ShadingPoint& sp, int spp, PixelSampler& sampler, EstimateCounters& counters);
+glm::vec3 estimateTsis(const Scene& scene, const ShadingPoint& sp, int spp, const std::shared_ptr<const TsisTable>& table,
+                       PixelSampler& sampler, EstimateCounters& counters);
 
 }  // namespace ht

@@ -1,13 +1,12 @@
 #include "wis.h"
 
 #include <algorithm>
-#include <map>
 #include <memory>
-#include <mutex>
 
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
+#include "error.h"
 #include "healpix.h"
 
 namespace ht {
@@ -33,35 +32,28 @@ float HealpixFrameBrdf::scale() const {
   return s * kInvPi;
 }
 
-const std::vector<glm::vec3>& healpixNodeCenters(int order) {
-  thread_local int lastOrder = -1;
-  thread_local const std::vector<glm::vec3>* last = nullptr;
-  if (order == lastOrder) return *last;
-  static std::mutex mutex;
-  static std::map<int, std::unique_ptr<std::vector<glm::vec3>>> cache;
-  std::lock_guard lock(mutex);
-  auto& c = cache[order];
-  if (!c) {
-    c = std::make_unique<std::vector<glm::vec3>>(MaxAvgTree::levelOffset(order + 1));
-    for (int l = 0; l <= order; ++l) {
-      glm::vec3* out = c->data() + MaxAvgTree::levelOffset(l);
-      tbb::parallel_for(uint64_t(0), MaxAvgTree::levelSize(l),
-                        [&](uint64_t p) { out[p] = glm::vec3(healpix::pixToVec(l, p)); });
-    }
+std::vector<glm::vec3> healpixNodeCenters(int order) {
+  std::vector<glm::vec3> centers(MaxAvgTree::levelOffset(order + 1));
+  for (int l = 0; l <= order; ++l) {
+    glm::vec3* out = centers.data() + MaxAvgTree::levelOffset(l);
+    tbb::parallel_for(uint64_t(0), MaxAvgTree::levelSize(l),
+                      [&](uint64_t p) { out[p] = glm::vec3(healpix::pixToVec(l, p)); });
   }
-  lastOrder = order;
-  last = c.get();
-  return *c;
+  return centers;
 }
 
+int WisPoint::orderFor(const Environment& env, int order) { return std::clamp(order, 0, std::min(env.order, kMaxOrder)); }
+
 WisPoint::WisPoint(const Environment& env, const Material& m, const glm::vec3& normalWorld,
-                   const glm::vec3& woWorld, int order)
+                   const glm::vec3& woWorld, int order, const std::vector<glm::vec3>& centers)
     : env_(env),
       brdf_(env, m, normalWorld, woWorld),
-      centers_(healpixNodeCenters(std::clamp(order, 0, std::min(env.order, kMaxOrder)))),
-      order_(std::clamp(order, 0, std::min(env.order, kMaxOrder))),
+      centers_(centers),
+      order_(orderFor(env, order)),
       exactLevel_(std::min(kExactLevels, order_)),
       floor_(kBrdfFloor * brdf_.scale()) {
+  if (centers_.size() < MaxAvgTree::levelOffset(order_ + 1))
+    throw Error("internal: wis node centres of a lower order than the point's");
   top_.assign(MaxAvgTree::levelOffset(exactLevel_ + 1), 0.0);
   const uint64_t base = MaxAvgTree::levelOffset(exactLevel_);
   for (uint64_t p = 0; p < MaxAvgTree::levelSize(exactLevel_); ++p) top_[base + p] = leafWeight(exactLevel_, p);
@@ -156,12 +148,13 @@ glm::vec3 WisPoint::approximateProduct(uint64_t pixel) const {
   return average * brdf_.rgb(centers_[MaxAvgTree::levelOffset(order_) + pixel]);
 }
 
-glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int order, bool biased, PixelSampler& sampler,
+glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int order, bool biased,
+                      const std::vector<glm::vec3>& centers, PixelSampler& sampler,
                       EstimateCounters& counters) {
   const Environment& env = scene.environment;
   if (!env.hasLight() || spp <= 0) return glm::vec3(0.0f);
   const Material& mat = *sp.material;
-  WisPoint wis(env, mat, sp.normal, sp.wo, order);
+  WisPoint wis(env, mat, sp.normal, sp.wo, order, centers);
   if (wis.empty()) return glm::vec3(0.0f);
   const Frame frame(sp.normal);
   const glm::vec3 woLocal = frame.toLocal(sp.wo);

@@ -60,8 +60,8 @@ struct HealpixFrameBrdf {
 };
 
 // Node centres (HEALPix frame) of every level up to `order`, flat per-level
-// layout of MaxAvgTree; cached per order, built on first use.
-const std::vector<glm::vec3>& healpixNodeCenters(int order);
+// layout of MaxAvgTree.
+std::vector<glm::vec3> healpixNodeCenters(int order);
 
 struct WisSample {
   glm::vec3 dir;       // world space
@@ -76,10 +76,13 @@ class WisPoint {
   static constexpr int kMaxOrder = 9;          // the WIS order is clamped to this and to the map's order
   static constexpr float kBrdfFloor = 1e-3f;   // BRDF weight >= this x HealpixFrameBrdf::scale()
 
+  // `centers`: healpixNodeCenters of orderFor(env, order) or deeper.
   WisPoint(const Environment& env, const Material& m, const glm::vec3& normalWorld, const glm::vec3& woWorld,
-           int order);
+           int order, const std::vector<glm::vec3>& centers);
+  // The order a point uses for a requested one.
+  static int orderFor(const Environment& env, int order);
 
-  // The order actually used: min(requested, map order, kMaxOrder), >= 0.
+  // The order actually used: min(requested, map order, kMaxOrder), >= 0 (orderFor).
   int order() const { return order_; }
   // True when no direction can be sampled (black map or black material).
   bool empty() const { return !(total_ > 0.0); }
@@ -112,7 +115,7 @@ class WisPoint {
 // The `wis` (unbiased f/p) and `wis-biased` estimates with `spp` warped
 // points, one per sample (with the stratified sampler, one scrambled
 // (0,2)-sequence).
-glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int order, bool biased, PixelSampler& sampler,
-                      EstimateCounters& counters);
+glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int order, bool biased,
+                      const std::vector<glm::vec3>& centers, PixelSampler& sampler, EstimateCounters& counters);
 
 }  // namespace ht

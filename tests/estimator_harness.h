@@ -131,6 +131,13 @@ struct MeanAndError {
   double luminanceVariance = 0.0;  // of one estimate
 };
 
+// The tables an HtPoint with these options reads.
+inline MethodTables htTables(const Scene& scene, const HtOptions& options) {
+  MethodOptions mo;
+  mo.brdfBounds = options.brdfTable ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
+  return prepareTables(scene, Method::Ht, mo);
+}
+
 // `batches` independent estimates of `spp` samples each, streams 0..batches-1.
 inline MeanAndError repeatedEstimates(const ShadingSetup& s, Method method, int batches, int spp, uint32_t seed,
                                       const MethodOptions& options = {}) {
@@ -141,12 +148,13 @@ inline MeanAndError repeatedEstimates(const ShadingSetup& s, Method method, int 
     double lumSum = 0.0, lumSq = 0.0;
   };
   tbb::combinable<Acc> partial;
+  const MethodTables tables = prepareTables(s.scene, method, options);
   tbb::parallel_for(tbb::blocked_range<int>(0, batches), [&](const auto& r) {
     Acc& a = partial.local();
     EstimateCounters counters;
     for (int b = r.begin(); b != r.end(); ++b) {
       Rng rng(seed, uint32_t(b));
-      glm::dvec3 e(estimateDirect(s.scene, sp, method, spp, rng, counters, options));
+      glm::dvec3 e(estimateDirect(s.scene, sp, method, spp, rng, counters, tables, options));
       a.sum += e;
       a.sumSq += e * e;
       double y = luminance(glm::vec3(e));

@@ -28,6 +28,18 @@ using namespace ht::test;
 
 namespace {
 
+std::shared_ptr<const TsisTable> tsisTableOf(const Environment& env, int level = TsisTable::kMaxLevel) {
+  return std::make_shared<const TsisTable>(buildTsisTable(env, level));
+}
+
+// wis node centres of an order, built once per test process.
+const std::vector<glm::vec3>& centersOf(int order) {
+  static std::map<int, std::vector<glm::vec3>> built;
+  auto [it, added] = built.try_emplace(order);
+  if (added) it->second = healpixNodeCenters(order);
+  return it->second;
+}
+
 constexpr int kEnvOrder = 5;  // Nside 32: brute force over all pixels stays cheap
 
 const Environment& sunrise() {
@@ -130,7 +142,7 @@ TEST(Competitors, ChiSquareAgainstOwnPdf) {
 
   auto tsis = [&](std::string name, const Environment& env, const Material& m, float view, int regions, int satLevel,
                   int sets) {
-    auto p = std::make_shared<TsisPoint>(env, m, n, viewAt(n, view), regions, satLevel);
+    auto p = std::make_shared<TsisPoint>(env, tsisTableOf(env, satLevel), m, n, viewAt(n, view), regions);
     const int count = 300000;
     std::function<glm::vec3(Rng&)> sample = [p](Rng& rng) {
       return p->warp({double(rng.next()) + 0x1p-24 * rng.next(), double(rng.next()) + 0x1p-24 * rng.next()}).dir;
@@ -151,7 +163,8 @@ TEST(Competitors, ChiSquareAgainstOwnPdf) {
   tsis("tsis-ggx-sunrise-stratified-sets", sunrise(), gloss, 40, TsisPoint::kDefaultRegions, TsisTable::kMaxLevel, 16);
 
   auto wis = [&](std::string name, const Environment& env, const Material& m, float view, int order, int sets) {
-    auto p = std::make_shared<WisPoint>(env, m, n, viewAt(n, view), order);
+    auto p = std::make_shared<WisPoint>(env, m, n, viewAt(n, view), order,
+                                        centersOf(WisPoint::orderFor(env, order)));
     const int count = 300000;
     std::function<glm::vec3(Rng&)> sample = [p](Rng& rng) {
       return p->warp({double(rng.next()) + 0x1p-24 * rng.next(), double(rng.next()) + 0x1p-24 * rng.next()}).dir;
@@ -218,7 +231,7 @@ TEST(Competitors, SampleDensityMatchesDensityOfDirection) {
   const Material gloss = ggx(0.15f, glm::vec3(0.9f), glm::vec3(0.2f));
   const glm::vec3 n = kTiltedNormal, wo = viewAt(n, 50);
   for (int satLevel : {TsisTable::kMaxLevel, 2}) {
-    TsisPoint t(sunrise(), gloss, n, wo, 40, satLevel);
+    TsisPoint t(sunrise(), tsisTableOf(sunrise(), satLevel), gloss, n, wo, 40);
     ASSERT_FALSE(t.empty());
     // The regions tile the twelve faces.
     uint64_t covered = 0;
@@ -241,7 +254,7 @@ TEST(Competitors, SampleDensityMatchesDensityOfDirection) {
     EXPECT_LE(mismatches, 10) << "sat level " << satLevel;
   }
   for (int order : {0, 3, 5}) {
-    WisPoint w(sunrise(), gloss, n, wo, order);
+    WisPoint w(sunrise(), gloss, n, wo, order, centersOf(order));
     ASSERT_EQ(w.order(), order);
     double total = 0.0;
     for (uint64_t p = 0; p < healpix::pixelCount(order); ++p) total += w.pixelProbability(p);
@@ -259,7 +272,7 @@ TEST(Competitors, SampleDensityMatchesDensityOfDirection) {
     EXPECT_LE(mismatches, 10) << "order " << order;
   }
   // The WIS order is clamped to the map's.
-  EXPECT_EQ(WisPoint(sunrise(), gloss, n, wo, 9).order(), kEnvOrder);
+  EXPECT_EQ(WisPoint(sunrise(), gloss, n, wo, 9, centersOf(kEnvOrder)).order(), kEnvOrder);
 }
 
 // Each estimator's mean over many independent estimates matches the brute
@@ -311,7 +324,7 @@ TEST(Competitors, UnbiasedAgainstBruteForce) {
   const ShadingSetup& s = setups[3];
   MethodOptions wo;
   wo.wisOrder = 4;
-  WisPoint w(s.scene.environment, s.scene.materials[0], s.sp.normal, s.sp.wo, wo.wisOrder);
+  WisPoint w(s.scene.environment, s.scene.materials[0], s.sp.normal, s.sp.wo, wo.wisOrder, centersOf(wo.wisOrder));
   glm::dvec3 expectation(0.0);
   for (uint64_t p = 0; p < healpix::pixelCount(wo.wisOrder); ++p)
     expectation += glm::dvec3(w.approximateProduct(p)) * healpix::pixelSolidAngle(wo.wisOrder);

@@ -49,6 +49,7 @@ std::vector<ShadingSetup> setups() {
 struct PreparedPoint {
   ShadingPoint sp;
   HtOptions htOptions;
+  MethodTables tables;
   std::unique_ptr<HtPoint> point;
   Frontier frontier;
 };
@@ -57,7 +58,8 @@ void prepare(const ShadingSetup& s, const FrontierOptions& options, int n, Prepa
   p.sp = s.sp;
   p.sp.material = &s.scene.materials[0];
   p.htOptions.budgetRefinements = -1;
-  p.point = std::make_unique<HtPoint>(s.scene, p.sp, p.htOptions);
+  p.tables = htTables(s.scene, p.htOptions);
+  p.point = std::make_unique<HtPoint>(s.scene, p.sp, p.htOptions, p.tables);
   p.frontier.build(*p.point, p.sp, options, n);
 }
 
@@ -124,11 +126,12 @@ TEST(Frontier, CountIsExactlyN) {
   for (const ShadingSetup& s : setups()) {
     ShadingPoint sp = s.sp;
     sp.material = &s.scene.materials[0];
+    const MethodTables tables = prepareTables(s.scene, Method::HtFrontier);
     for (int n : {1, 2, 4, 16, 64, 256}) {
       for (uint32_t stream = 0; stream < 20; ++stream) {
         Rng rng(11, stream);
         EstimateCounters c;
-        estimateDirect(s.scene, sp, Method::HtFrontier, n, rng, c);
+        estimateDirect(s.scene, sp, Method::HtFrontier, n, rng, c, tables);
         ASSERT_EQ(c.directions, uint64_t(n)) << s.name << " n " << n;
         ASSERT_LE(c.shadowRays, uint64_t(n)) << s.name << " n " << n;
       }
@@ -191,10 +194,11 @@ TEST(FrontierSlow, UnbiasedAtHighSpp) {
   for (const ShadingSetup& s : setups()) {
     ShadingPoint sp = s.sp;
     sp.material = &s.scene.materials[0];
+    const MethodTables tables = prepareTables(s.scene, Method::HtFrontier);
     for (int n : {256, 1024}) {
       Rng rng(3, 1);
       EstimateCounters counters;
-      estimateDirect(s.scene, sp, Method::HtFrontier, n, rng, counters);
+      estimateDirect(s.scene, sp, Method::HtFrontier, n, rng, counters, tables);
       EXPECT_EQ(counters.directions, uint64_t(n)) << s.name;
     }
   }

@@ -525,7 +525,8 @@ INSTANTIATE_TEST_SUITE_P(EnvironmentDescent, GpuOtherSeedsFp32, ::testing::Value
 
 // The CPU's accepted samples at pixel (x, y), drawn as renderCpu and
 // estimateDirect draw them; empty where the camera ray escapes.
-std::vector<HtSample> cpuHtSamples(const Scene& scene, const RenderSettings& s, int x, int y) {
+std::vector<HtSample> cpuHtSamples(const Scene& scene, const RenderSettings& s, const MethodTables& tables, int x,
+                                   int y) {
   Ray ray = cameraRay(scene.camera, s.width, s.height, x + 0.5f, y + 0.5f);
   Hit hit;
   if (!intersectScene(scene, ray, 0.0f, INFINITY, hit)) return {};
@@ -534,7 +535,7 @@ std::vector<HtSample> cpuHtSamples(const Scene& scene, const RenderSettings& s, 
   PixelSampler sampler(s.options.sampler, rng.nextUint());
   const HtOptions o = htOptionsFor(s.method, s.options);
   const uint32_t pixelSeed = rng.nextUint();
-  HtPoint point(scene, sp, o);
+  HtPoint point(scene, sp, o, tables);
   point.setBudget(double(s.spp));
   const float u = rng.next();
   std::vector<HtSample> out;
@@ -575,13 +576,14 @@ TEST(GpuHt, AcceptsTheCpuSamples) {
     RenderSettings s = settings(c.method, 16, 7, 40, 24);
     s.options.brdfBounds = c.bounds;
     s.options.htSphereSequence = c.sphereSequence;
-    GpuRenderResult g = gpu.render(s);
+    const MethodTables tables = prepareTables(scene, s.method, s.options);
+    GpuRenderResult g = gpu.render(s, tables);
     ASSERT_EQ(g.htSamples.size(), size_t(s.width) * s.height);
     size_t pixels = 0, differ = 0, samples = 0, averaged = 0;
     double worstAngle = 0.0;
     for (int y = 0; y < s.height; ++y)
       for (int x = 0; x < s.width; ++x) {
-        const std::vector<HtSample> cpu = cpuHtSamples(scene, s, x, y);
+        const std::vector<HtSample> cpu = cpuHtSamples(scene, s, tables, x, y);
         const std::vector<HtSampleRecord>& gpuSamples = g.htSamples[size_t(y) * s.width + x];
         ++pixels;
         samples += cpu.size();

@@ -77,7 +77,8 @@ TEST(Ht, TraversalAcceptsExactlyTheFullScan) {
         opt.sphereSequence = variant & 4;
         ShadingPoint sp = s.sp;
         sp.material = &s.scene.materials[0];
-        HtPoint ht(s.scene, sp, opt);
+        const MethodTables tables = htTables(s.scene, opt);
+        HtPoint ht(s.scene, sp, opt, tables);
         for (double n : {4.0, 64.0, 1024.0}) {
           ht.setBudget(n);
           for (uint32_t seed = 1; seed <= 3; ++seed) {
@@ -111,7 +112,8 @@ TEST(Ht, DensityIsProportionalToH) {
       HtOptions opt = optionsFor(vis);
       ShadingPoint sp = s.sp;
       sp.material = &s.scene.materials[0];
-      HtPoint ht(s.scene, sp, opt);
+      const MethodTables tables = htTables(s.scene, opt);
+      HtPoint ht(s.scene, sp, opt, tables);
       ht.setBudget(32.0);
       const int binOrder = order + 1;
       std::vector<double> expected(healpix::pixelCount(binOrder), 0.0);
@@ -148,7 +150,8 @@ TEST(Ht, ExpectedSampleCount) {
       HtOptions opt = optionsFor(vis);
       ShadingPoint sp = s.sp;
       sp.material = &s.scene.materials[0];
-      HtPoint ht(s.scene, sp, opt);
+      const MethodTables tables = htTables(s.scene, opt);
+      HtPoint ht(s.scene, sp, opt, tables);
       double c = 0.0;
       for (uint64_t leaf = 0; leaf < healpix::pixelCount(order); ++leaf)
         c += double(ht.leafValue(leaf, ht.pathBound(leaf))) * healpix::pixelSolidAngle(order);
@@ -198,7 +201,8 @@ TEST(Ht, BoundsAreConservative) {
     ShadingPoint sp = s.sp;
     sp.material = &s.scene.materials[0];
     HtOptions opt = optionsFor(true, table);
-    HtPoint ht(s.scene, sp, opt);
+    const MethodTables tables = htTables(s.scene, opt);
+    HtPoint ht(s.scene, sp, opt, tables);
     const Environment& env = s.scene.environment;
     int blockedChecked = 0;
     for (int trial = 0; trial < 3000; ++trial) {
@@ -237,7 +241,8 @@ TEST(Ht, BoundsAreConservative) {
 
 // Every node of a level lies within the level's radius of its centre.
 TEST(Ht, LevelRadiusBoundsEveryNode) {
-  const HtGeometry& g = htGeometry(6);
+  const std::shared_ptr<const HtGeometry> geometry = buildHtGeometry(6);
+  const HtGeometry& g = *geometry;
   std::mt19937_64 gen(3);
   for (int level = 0; level <= healpix::kMaxOrder; ++level) {
     std::vector<uint64_t> pixels;
@@ -274,7 +279,8 @@ TEST(Ht, VisibilityCapsIgnoreRoundingAcrossTheOwnSurface) {
     Rng rng(5, 1);
     PixelSampler sampler(SamplerKind::Stratified, 5);
     EstimateCounters counters;
-    glm::vec3 e = estimateHt(s.scene, s.sp, optionsFor(true), 64, 77, rng, sampler, counters);
+    glm::vec3 e = estimateHt(s.scene, s.sp, optionsFor(true), 64, 77, rng, sampler, counters,
+                             htTables(s.scene, optionsFor(true)));
     EXPECT_NEAR(e.g, 0.8f, 0.1f) << "plane, dy = " << dy;
   }
   // A point on a sphere's top, rounded into it.
@@ -286,7 +292,8 @@ TEST(Ht, VisibilityCapsIgnoreRoundingAcrossTheOwnSurface) {
   Rng rng(6, 1);
   PixelSampler sampler(SamplerKind::Stratified, 6);
   EstimateCounters counters;
-  glm::vec3 e = estimateHt(s.scene, s.sp, optionsFor(true), 64, 78, rng, sampler, counters);
+  glm::vec3 e = estimateHt(s.scene, s.sp, optionsFor(true), 64, 78, rng, sampler, counters,
+                           htTables(s.scene, optionsFor(true)));
   EXPECT_NEAR(e.g, 0.8f, 0.1f) << "sphere";
 }
 
@@ -361,7 +368,8 @@ TEST(HtSlow, BiasedConvergesToUnbiased) {
         opt.brdfTable = table;
         ShadingPoint sp = s.sp;
         sp.material = &s.scene.materials[0];
-        HtPoint ht(s.scene, sp, opt);
+        const MethodTables tables = htTables(s.scene, opt);
+        HtPoint ht(s.scene, sp, opt, tables);
         ht.setBudget(n);
         uint64_t averaged = 0, total = 0;
         std::vector<HtSample> samples;

@@ -1,0 +1,35 @@
+// The tables methods read at every shading point (HEALPix geometry, BRDF
+// bound tables, wis's node centres, tsis's summed-area table). A render
+// builds the ones its method needs before it starts (prepareTables in
+// integrator.h), so that its time leaves them out, owns them, and passes
+// them down; nothing is cached behind the caller's back.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace ht {
+
+struct HtGeometry;
+class BrdfTable;
+struct TsisTable;
+struct Scene;
+struct Material;
+
+struct MethodTables {
+  std::shared_ptr<const HtGeometry> htGeometry;               // ht*, ht-frontier, oracle: the map's order
+  std::vector<std::shared_ptr<const BrdfTable>> brdfTables;   // ht* with table bounds: per scene material
+  std::shared_ptr<const std::vector<glm::vec3>> wisCenters;   // wis*: node centres up to its order
+  std::shared_ptr<const TsisTable> tsis;                      // tsis
+
+  // Each throws an internal ht::Error when its table was not prepared.
+  const HtGeometry& geometry() const;
+  // The table of `material`, one of scene.materials.
+  const BrdfTable& brdfTable(const Scene& scene, const Material* material) const;
+  const std::vector<glm::vec3>& wis() const;
+  const std::shared_ptr<const TsisTable>& tsisTable() const;
+};
+
+}  // namespace ht
