@@ -139,6 +139,99 @@ int runInfo() {
   return 0;
 }
 
+// What the render's memory estimate needs, the map's size from its header.
+MemoryInputs memoryInputs(const RenderOptions& o, const Scene& scene, Method method) {
+  MemoryInputs mem;
+  mem.envOrder = std::countr_zero(unsigned(scene.environmentDesc.nside));
+  fs::path file = scene.environmentDesc.file;
+  if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
+  readExrSize(file.string(), mem.inputWidth, mem.inputHeight);
+  mem.method = method;
+  mem.options.oracleOrder = o.oracleOrder;
+  mem.options.wisOrder = o.wisOrder;
+  mem.width = o.width > 0 ? o.width : scene.width;
+  mem.height = o.height > 0 ? o.height : scene.height;
+  mem.threads = tbb::info::default_concurrency();
+  mem.gpu = o.device == "gpu";
+  return mem;
+}
+
+struct Seconds {
+  double parse, environment, prepare, write, device, upload, gpu;
+};
+
+RenderSettings renderSettings(const RenderOptions& o, const Scene& scene, Method method) {
+  RenderSettings rs;
+  rs.method = method;
+  rs.spp = o.spp;
+  rs.seed = o.seed;
+  rs.width = o.width > 0 ? o.width : scene.width;
+  rs.height = o.height > 0 ? o.height : scene.height;
+  rs.progress = !o.quiet;
+  rs.options.oracleOrder = o.oracleOrder;
+  rs.options.risCandidates = o.risCandidates;
+  rs.options.wisOrder = o.wisOrder;
+  rs.options.frontierRefinements = o.frontierRefinements;
+  rs.options.htSphereSequence = o.htSequence == "sphere";
+  rs.options.sampler = o.sampler == "independent" ? SamplerKind::Independent : SamplerKind::Stratified;
+  rs.options.brdfBounds =
+      o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
+  return rs;
+}
+
+// The --stats JSON.
+nlohmann::json renderStats(const RenderOptions& o, const Scene& scene, const RenderSettings& rs, const RenderResult& r,
+                           const GpuRenderer* gpu, const Seconds& t, const MemoryEstimate& memory,
+                           uint64_t memoryLimit) {
+  double shaded = double(std::max<uint64_t>(r.shadedPixels, 1));
+  nlohmann::json stats = {
+      {"scene", scene.path},
+      {"method", methodName(rs.method)},
+      {"spp", rs.spp},
+      {"brdf_bounds", o.brdfBounds},
+      {"ht_sequence", o.htSequence},
+      {"sampler", o.sampler},
+      {"width", rs.width},
+      {"height", rs.height},
+      {"seed", rs.seed},
+      {"device", gpu ? nlohmann::json{{"type", "gpu"}, {"name", gpu->device().name}, {"vulkan_type", gpu->device().type},
+                                        {"driver", gpu->device().driver}, {"vulkan", gpu->device().apiVersion},
+                                        {"shader", gpu->shaderName()}}
+                     : nlohmann::json{{"type", "cpu"}, {"name", cpuName()}, {"threads", tbb::info::default_concurrency()}}},
+      {"environment",
+       {{"file", scene.environmentDesc.file},
+        {"nside", scene.environment.nside()},
+        {"clamped_negative_texels", scene.environmentStats.clampedNegativeTexels},
+        {"repaired_nonfinite_texels", scene.environmentStats.repairedNonFiniteTexels}}},
+      {"shaded_pixels", r.shadedPixels},
+      {"mean_samples_per_pixel", double(r.counters.directions) / shaded},
+      {"mean_shadow_rays_per_pixel", double(r.counters.shadowRays) / shaded},
+      {"mean_ht_nodes_per_pixel", double(r.counters.htNodes) / shaded},
+      {"seconds",
+       {{"parse", t.parse}, {"environment", t.environment}, {"prepare", t.prepare}, {"render", r.seconds}, {"write", t.write}}},
+      {"outputs", {o.out, fs::path(o.out).replace_extension(".png").string()}},
+  };
+  // The environment stage split: file read + checks, HEALPix resampling, max/avg tree.
+  stats["seconds"]["environment_load"] = scene.environmentStats.loadSeconds;
+  stats["seconds"]["environment_trees"] = scene.environment.treeSeconds;
+  stats["seconds"]["environment_resample"] =
+      std::max(0.0, t.environment - scene.environmentStats.loadSeconds - scene.environment.treeSeconds);
+  if (gpu) {
+    stats["seconds"]["device"] = t.device;
+    stats["seconds"]["upload"] = t.upload;
+    stats["seconds"]["gpu"] = t.gpu >= 0.0 ? nlohmann::json(t.gpu) : nlohmann::json(nullptr);
+  }
+  nlohmann::json memoryParts = nlohmann::json::object();
+  for (const auto& [what, bytes] : memory.parts) memoryParts[what] = bytes;
+  stats["memory"] = {{"estimate_bytes", memory.peak()},
+                     {"estimate_load_bytes", memory.loadPeak},
+                     {"estimate_render_bytes", memory.renderPeak},
+                     {"limit_bytes", memoryLimit},
+                     {"peak_rss_bytes", peakRssBytes()},
+                     {"parts", memoryParts}};
+  return stats;
+}
+
 int runRender(const RenderOptions& o) {
   auto method = parseMethod(o.method);
   if (!method) {
@@ -171,20 +264,7 @@ int runRender(const RenderOptions& o) {
   // The memory the render will need, before anything large is allocated;
   // the map's size comes from its header (an unreadable map is refused by
   // loadEnvironment with its own message).
-  MemoryInputs mem;
-  mem.envOrder = std::countr_zero(unsigned(scene.environmentDesc.nside));
-  {
-    fs::path file = scene.environmentDesc.file;
-    if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
-    readExrSize(file.string(), mem.inputWidth, mem.inputHeight);
-  }
-  mem.method = *method;
-  mem.options.oracleOrder = o.oracleOrder;
-  mem.options.wisOrder = o.wisOrder;
-  mem.width = o.width > 0 ? o.width : scene.width;
-  mem.height = o.height > 0 ? o.height : scene.height;
-  mem.threads = tbb::info::default_concurrency();
-  mem.gpu = o.device == "gpu";
+  MemoryInputs mem = memoryInputs(o, scene, *method);
   checkMemory(estimateRenderMemory(mem), memoryLimit, limitSource);
   t0 = std::chrono::steady_clock::now();
   scene.environmentDesc.repairNonFinite = o.repairNonFinite;
@@ -210,21 +290,7 @@ int runRender(const RenderOptions& o) {
                  gpu->device().apiVersion.c_str());
   else if (!o.quiet && o.device == "auto")
     std::fprintf(stderr, "device: cpu reference (%s)\n", cpuWhy.c_str());
-  RenderSettings rs;
-  rs.method = *method;
-  rs.spp = o.spp;
-  rs.seed = o.seed;
-  rs.width = o.width > 0 ? o.width : scene.width;
-  rs.height = o.height > 0 ? o.height : scene.height;
-  rs.progress = !o.quiet;
-  rs.options.oracleOrder = o.oracleOrder;
-  rs.options.risCandidates = o.risCandidates;
-  rs.options.wisOrder = o.wisOrder;
-  rs.options.frontierRefinements = o.frontierRefinements;
-  rs.options.htSphereSequence = o.htSequence == "sphere";
-  rs.options.sampler = o.sampler == "independent" ? SamplerKind::Independent : SamplerKind::Stratified;
-  rs.options.brdfBounds =
-      o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
+  const RenderSettings rs = renderSettings(o, scene, *method);
   // One-time tables (HEALPix geometry, BRDF tables) are built here, outside the render timing.
   t0 = std::chrono::steady_clock::now();
   const MethodTables tables = prepareTables(scene, rs.method, rs.options);
@@ -247,52 +313,8 @@ int runRender(const RenderOptions& o) {
   writePng(pngFile, r.image, o.exposure);
   double tWrite = secondsSince(t0);
 
-  double shaded = double(std::max<uint64_t>(r.shadedPixels, 1));
-  nlohmann::json stats = {
-      {"scene", scene.path},
-      {"method", methodName(rs.method)},
-      {"spp", rs.spp},
-      {"brdf_bounds", o.brdfBounds},
-      {"ht_sequence", o.htSequence},
-      {"sampler", o.sampler},
-      {"width", rs.width},
-      {"height", rs.height},
-      {"seed", rs.seed},
-      {"device", gpu ? nlohmann::json{{"type", "gpu"}, {"name", gpu->device().name}, {"vulkan_type", gpu->device().type},
-                                        {"driver", gpu->device().driver}, {"vulkan", gpu->device().apiVersion},
-                                        {"shader", gpu->shaderName()}}
-                     : nlohmann::json{{"type", "cpu"}, {"name", cpuName()}, {"threads", tbb::info::default_concurrency()}}},
-      {"environment",
-       {{"file", scene.environmentDesc.file},
-        {"nside", scene.environment.nside()},
-        {"clamped_negative_texels", scene.environmentStats.clampedNegativeTexels},
-        {"repaired_nonfinite_texels", scene.environmentStats.repairedNonFiniteTexels}}},
-      {"shaded_pixels", r.shadedPixels},
-      {"mean_samples_per_pixel", double(r.counters.directions) / shaded},
-      {"mean_shadow_rays_per_pixel", double(r.counters.shadowRays) / shaded},
-      {"mean_ht_nodes_per_pixel", double(r.counters.htNodes) / shaded},
-      {"seconds",
-       {{"parse", tParse}, {"environment", tEnv}, {"prepare", tPrepare}, {"render", r.seconds}, {"write", tWrite}}},
-      {"outputs", {o.out, png.string()}},
-  };
-  // The environment stage split: file read + checks, HEALPix resampling, max/avg tree.
-  stats["seconds"]["environment_load"] = scene.environmentStats.loadSeconds;
-  stats["seconds"]["environment_trees"] = scene.environment.treeSeconds;
-  stats["seconds"]["environment_resample"] =
-      std::max(0.0, tEnv - scene.environmentStats.loadSeconds - scene.environment.treeSeconds);
-  if (gpu) {
-    stats["seconds"]["device"] = tDevice;
-    stats["seconds"]["upload"] = tUpload;
-    stats["seconds"]["gpu"] = tGpu >= 0.0 ? nlohmann::json(tGpu) : nlohmann::json(nullptr);
-  }
-  nlohmann::json memoryParts = nlohmann::json::object();
-  for (const auto& [what, bytes] : memory.parts) memoryParts[what] = bytes;
-  stats["memory"] = {{"estimate_bytes", memory.peak()},
-                     {"estimate_load_bytes", memory.loadPeak},
-                     {"estimate_render_bytes", memory.renderPeak},
-                     {"limit_bytes", memoryLimit},
-                     {"peak_rss_bytes", peakRssBytes()},
-                     {"parts", memoryParts}};
+  const Seconds seconds{tParse, tEnv, tPrepare, tWrite, tDevice, tUpload, tGpu};
+  const nlohmann::json stats = renderStats(o, scene, rs, r, gpu.get(), seconds, memory, memoryLimit);
   if (statsFile) {
     const std::string text = stats.dump(2) + "\n";
     writeBytes(*statsFile, text.data(), text.size());
@@ -304,7 +326,108 @@ int runRender(const RenderOptions& o) {
   if (statsFile) statsFile->commit();
   if (!o.quiet)
     std::fprintf(stderr, "%s %d spp: %.3f s render, %.2f samples/pixel -> %s, %s\n", methodName(rs.method), rs.spp,
-                 r.seconds, double(r.counters.directions) / shaded, o.out.c_str(), png.string().c_str());
+                 r.seconds, stats["mean_samples_per_pixel"].get<double>(), o.out.c_str(), png.string().c_str());
+  return 0;
+}
+
+void addRenderOptions(CLI::App& r, RenderOptions& o) {
+  r.add_option("--scene", o.scene, "scene JSON file")->capture_default_str();
+  r.add_option("--method", o.method, "sampling method (see `htrender methods`)")->capture_default_str();
+  r.add_option("--spp", o.spp, "samples per pixel")->check(CLI::Range(1, 1 << 20))->capture_default_str();
+  r.add_option("--device", o.device, "cpu | gpu | auto")
+      ->check(CLI::IsMember({"cpu", "gpu", "auto"}))
+      ->capture_default_str();
+  r.add_option("--gpu-index", o.gpuIndex, "Vulkan device for --device gpu/auto (see `htrender info`)")
+      ->check(CLI::NonNegativeNumber);
+  r.add_option("--width", o.width, "image width (default: the scene's)")->check(CLI::Range(1, 16384));
+  r.add_option("--height", o.height, "image height (default: the scene's)")->check(CLI::Range(1, 16384));
+  r.add_option("--seed", o.seed, "random seed")->capture_default_str();
+  r.add_option("--out", o.out, "output EXR; the PNG preview goes next to it")->capture_default_str();
+  r.add_option("--stats", o.stats, "write timings and counts as JSON");
+  r.add_option("--exposure", o.exposure, "PNG preview exposure in stops")->capture_default_str();
+  r.add_option("--sampler", o.sampler,
+                     "per-pixel sample points: Owen-scrambled Sobol' (0,2)-sequences per decision (stratified) "
+                     "or i.i.d. (independent); HT's candidates keep their own sequence")
+      ->check(CLI::IsMember({"stratified", "independent"}))
+      ->capture_default_str();
+  r.add_option("--brdf-bounds", o.brdfBounds, "ht*: BRDF bounds from cones (analytic) or tabulated trees (table)")
+      ->check(CLI::IsMember({"analytic", "table"}))
+      ->capture_default_str();
+  r.add_option("--ht-sequence", o.htSequence, "ht*: one candidate sequence over the sphere or one per face")
+      ->check(CLI::IsMember({"sphere", "faces"}))
+      ->capture_default_str();
+  r.add_option("--oracle-order", o.oracleOrder, "oracle: HEALPix level of the brute-force product")
+      ->check(CLI::Range(0, 10))
+      ->capture_default_str();
+  r.add_option("--ris-candidates", o.risCandidates, "ris: candidates M per resampled sample")
+      ->check(CLI::Range(1, 4096))
+      ->capture_default_str();
+  r.add_option("--wis-order", o.wisOrder,
+                     "wis*: HEALPix order of the sampled product (Nside 2^order, at most the environment's)")
+      ->check(CLI::Range(0, WisPoint::kMaxOrder))
+      ->capture_default_str();
+  r.add_option("--frontier-refinements", o.frontierRefinements,
+                     "ht-frontier: most node splits per shading point (frontier of 12 + 3 x this nodes; -1: 16 + spp, at most 256)")
+      ->check(CLI::Range(-1, 4096))
+      ->capture_default_str();
+  r.add_flag("--repair-nonfinite", o.repairNonFinite,
+                  "set NaN/Inf texels of the environment to 0 with a warning instead of refusing the map");
+  r.add_option("--max-memory", o.maxMemory,
+                     "refuse renders estimated to need more memory (bytes, or with K, M, G, T; "
+                     "default: 80% of the available memory)");
+  r.add_flag("--quiet,-q", o.quiet, "no progress or summary on stderr");
+}
+
+int runMethods() {
+  std::printf("%-14s %-11s %-8s %-4s %s\n", "method", "family", "biased", "gpu", "samples");
+  for (const MethodInfo& m : allMethods())
+    std::printf("%-14s %-11s %-8s %-4s %s\n", m.name, familyName(m.family), m.biased ? "yes" : "no",
+                m.gpu ? (m.gpuFloat64 ? "fp64" : "yes") : "no", m.description);
+  return 0;
+}
+
+int runAverage(const std::vector<std::string>& averageInputs, const std::string& averageOut) {
+  checkOutputPaths({{"--out", averageOut}});
+  ImageRGB sum;
+  for (const std::string& path : averageInputs) {
+    ImageRGB img = readExr(path);
+    if (sum.pixels.empty()) {
+      sum = img;
+      continue;
+    }
+    if (img.width != sum.width || img.height != sum.height)
+      throw Error(fmt::format("{}: size {}x{} differs from {}x{}", path, img.width, img.height, sum.width,
+                              sum.height));
+    for (size_t i = 0; i < sum.pixels.size(); ++i) sum.pixels[i] += img.pixels[i];
+  }
+  for (glm::vec3& p : sum.pixels) p /= float(averageInputs.size());
+  writeExr(averageOut, sum);
+  return 0;
+}
+
+int runExport(const std::string& exportIn, const std::string& exportOut) {
+  checkOutputPaths({{"--out", exportOut}});
+  OutputFile out(exportOut);
+  ImageRGB img = readExr(exportIn);
+  std::string pfm = fmt::format("PF\n{} {}\n-1.0\n", img.width, img.height);
+  const size_t header = pfm.size(), row = sizeof(glm::vec3) * size_t(img.width);
+  pfm.resize(header + row * size_t(img.height));
+  for (int y = img.height - 1; y >= 0; --y)  // PFM rows run bottom to top
+    std::memcpy(&pfm[header + row * size_t(img.height - 1 - y)], &img.at(0, y), row);
+  writeBytes(out, pfm.data(), pfm.size());
+  out.commit();
+  return 0;
+}
+
+int runCompare(const std::string& refPath, const std::string& testPath) {
+  ImageRGB ref = readExr(refPath), test = readExr(testPath);
+  if (ref.width != test.width || ref.height != test.height)
+    throw Error(fmt::format("{}: size {}x{} differs from the reference's {}x{}", testPath, test.width,
+                            test.height, ref.width, ref.height));
+  ImageError e = compareImages(ref, test);
+  nlohmann::json j = {{"rmse", e.rmse}, {"relmse", e.relMse}, {"mean_abs_rel_error", e.meanAbsRelError},
+                      {"luminance_relmse", e.luminanceRelMse}, {"pixels", e.pixels}};
+  std::printf("%s\n", j.dump().c_str());
   return 0;
 }
 
@@ -316,51 +439,7 @@ int main(int argc, char** argv) {
 
   RenderOptions o;
   CLI::App* render = app.add_subcommand("render", "render a scene to EXR + PNG preview");
-  render->add_option("--scene", o.scene, "scene JSON file")->capture_default_str();
-  render->add_option("--method", o.method, "sampling method (see `htrender methods`)")->capture_default_str();
-  render->add_option("--spp", o.spp, "samples per pixel")->check(CLI::Range(1, 1 << 20))->capture_default_str();
-  render->add_option("--device", o.device, "cpu | gpu | auto")
-      ->check(CLI::IsMember({"cpu", "gpu", "auto"}))
-      ->capture_default_str();
-  render->add_option("--gpu-index", o.gpuIndex, "Vulkan device for --device gpu/auto (see `htrender info`)")
-      ->check(CLI::NonNegativeNumber);
-  render->add_option("--width", o.width, "image width (default: the scene's)")->check(CLI::Range(1, 16384));
-  render->add_option("--height", o.height, "image height (default: the scene's)")->check(CLI::Range(1, 16384));
-  render->add_option("--seed", o.seed, "random seed")->capture_default_str();
-  render->add_option("--out", o.out, "output EXR; the PNG preview goes next to it")->capture_default_str();
-  render->add_option("--stats", o.stats, "write timings and counts as JSON");
-  render->add_option("--exposure", o.exposure, "PNG preview exposure in stops")->capture_default_str();
-  render->add_option("--sampler", o.sampler,
-                     "per-pixel sample points: Owen-scrambled Sobol' (0,2)-sequences per decision (stratified) "
-                     "or i.i.d. (independent); HT's candidates keep their own sequence")
-      ->check(CLI::IsMember({"stratified", "independent"}))
-      ->capture_default_str();
-  render->add_option("--brdf-bounds", o.brdfBounds, "ht*: BRDF bounds from cones (analytic) or tabulated trees (table)")
-      ->check(CLI::IsMember({"analytic", "table"}))
-      ->capture_default_str();
-  render->add_option("--ht-sequence", o.htSequence, "ht*: one candidate sequence over the sphere or one per face")
-      ->check(CLI::IsMember({"sphere", "faces"}))
-      ->capture_default_str();
-  render->add_option("--oracle-order", o.oracleOrder, "oracle: HEALPix level of the brute-force product")
-      ->check(CLI::Range(0, 10))
-      ->capture_default_str();
-  render->add_option("--ris-candidates", o.risCandidates, "ris: candidates M per resampled sample")
-      ->check(CLI::Range(1, 4096))
-      ->capture_default_str();
-  render->add_option("--wis-order", o.wisOrder,
-                     "wis*: HEALPix order of the sampled product (Nside 2^order, at most the environment's)")
-      ->check(CLI::Range(0, WisPoint::kMaxOrder))
-      ->capture_default_str();
-  render->add_option("--frontier-refinements", o.frontierRefinements,
-                     "ht-frontier: most node splits per shading point (frontier of 12 + 3 x this nodes; -1: 16 + spp, at most 256)")
-      ->check(CLI::Range(-1, 4096))
-      ->capture_default_str();
-  render->add_flag("--repair-nonfinite", o.repairNonFinite,
-                  "set NaN/Inf texels of the environment to 0 with a warning instead of refusing the map");
-  render->add_option("--max-memory", o.maxMemory,
-                     "refuse renders estimated to need more memory (bytes, or with K, M, G, T; "
-                     "default: 80% of the available memory)");
-  render->add_flag("--quiet,-q", o.quiet, "no progress or summary on stderr");
+  addRenderOptions(*render, o);
 
   CLI::App* methods = app.add_subcommand("methods", "list the sampling methods");
   CLI::App* info = app.add_subcommand("info", "list the Vulkan devices and the features the GPU path uses");
@@ -398,55 +477,10 @@ int main(int argc, char** argv) {
   removeOutputsOnSignals();
   try {
     if (*info) return runInfo();
-    if (*methods) {
-      std::printf("%-14s %-11s %-8s %-4s %s\n", "method", "family", "biased", "gpu", "samples");
-      for (const MethodInfo& m : allMethods())
-        std::printf("%-14s %-11s %-8s %-4s %s\n", m.name, familyName(m.family), m.biased ? "yes" : "no",
-                    m.gpu ? (m.gpuFloat64 ? "fp64" : "yes") : "no", m.description);
-      return 0;
-    }
-    if (*average) {
-      checkOutputPaths({{"--out", averageOut}});
-      ImageRGB sum;
-      for (const std::string& path : averageInputs) {
-        ImageRGB img = readExr(path);
-        if (sum.pixels.empty()) {
-          sum = img;
-          continue;
-        }
-        if (img.width != sum.width || img.height != sum.height)
-          throw Error(fmt::format("{}: size {}x{} differs from {}x{}", path, img.width, img.height, sum.width,
-                                  sum.height));
-        for (size_t i = 0; i < sum.pixels.size(); ++i) sum.pixels[i] += img.pixels[i];
-      }
-      for (glm::vec3& p : sum.pixels) p /= float(averageInputs.size());
-      writeExr(averageOut, sum);
-      return 0;
-    }
-    if (*exportCmd) {
-      checkOutputPaths({{"--out", exportOut}});
-      OutputFile out(exportOut);
-      ImageRGB img = readExr(exportIn);
-      std::string pfm = fmt::format("PF\n{} {}\n-1.0\n", img.width, img.height);
-      const size_t header = pfm.size(), row = sizeof(glm::vec3) * size_t(img.width);
-      pfm.resize(header + row * size_t(img.height));
-      for (int y = img.height - 1; y >= 0; --y)  // PFM rows run bottom to top
-        std::memcpy(&pfm[header + row * size_t(img.height - 1 - y)], &img.at(0, y), row);
-      writeBytes(out, pfm.data(), pfm.size());
-      out.commit();
-      return 0;
-    }
-    if (*compare) {
-      ImageRGB ref = readExr(refPath), test = readExr(testPath);
-      if (ref.width != test.width || ref.height != test.height)
-        throw Error(fmt::format("{}: size {}x{} differs from the reference's {}x{}", testPath, test.width,
-                                test.height, ref.width, ref.height));
-      ImageError e = compareImages(ref, test);
-      nlohmann::json j = {{"rmse", e.rmse}, {"relmse", e.relMse}, {"mean_abs_rel_error", e.meanAbsRelError},
-                          {"luminance_relmse", e.luminanceRelMse}, {"pixels", e.pixels}};
-      std::printf("%s\n", j.dump().c_str());
-      return 0;
-    }
+    if (*methods) return runMethods();
+    if (*average) return runAverage(averageInputs, averageOut);
+    if (*exportCmd) return runExport(exportIn, exportOut);
+    if (*compare) return runCompare(refPath, testPath);
     return runRender(o);
   } catch (const Error& e) {
     std::fprintf(stderr, "htrender: error: %s\n", e.what());
