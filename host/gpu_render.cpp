@@ -235,7 +235,7 @@ struct GpuRenderer::Impl {
       VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
       q.queryType = VK_QUERY_TYPE_TIMESTAMP;
       q.queryCount = 2;
-      vk::check(vkCreateQueryPool(ctx.device, &q, nullptr, &queries), "vkCreateQueryPool");
+      vk::check(ctx.fn.vkCreateQueryPool(ctx.device, &q, nullptr, &queries), "vkCreateQueryPool");
       timestampMask = ctx.info.timestampValidBits >= 64 ? ~uint64_t(0)
                                                         : (uint64_t(1) << ctx.info.timestampValidBits) - 1;
     }
@@ -259,8 +259,8 @@ struct GpuRenderer::Impl {
     if (pixels.size() > 0) pipeline->setBuffer(HT_BINDING_PIXELS, pixels);
   }
   ~Impl() {
-    if (ctx.device) vkDeviceWaitIdle(ctx.device);
-    if (queries) vkDestroyQueryPool(ctx.device, queries, nullptr);
+    if (ctx.device) ctx.fn.vkDeviceWaitIdle(ctx.device);
+    if (queries) ctx.fn.vkDestroyQueryPool(ctx.device, queries, nullptr);
   }
 };
 
@@ -499,12 +499,12 @@ void GpuRenderer::Impl::bindScratch(const RenderSettings& s, GpuPush& push) cons
 double GpuRenderer::Impl::submitBatches(GpuPush& push, uint32_t first, uint32_t count, uint32_t limit) {
   const uint32_t groupsX = (push.tileWidth + kWorkgroupSize - 1) / kWorkgroupSize;
   const uint32_t groupsY = (push.tileHeight + kWorkgroupSize - 1) / kWorkgroupSize;
-  auto barrier = [](VkCommandBuffer cmd, VkAccessFlags src, VkAccessFlags dst, VkPipelineStageFlags from,
+  auto barrier = [this](VkCommandBuffer cmd, VkAccessFlags src, VkAccessFlags dst, VkPipelineStageFlags from,
                     VkPipelineStageFlags to) {
     VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
     b.srcAccessMask = src;
     b.dstAccessMask = dst;
-    vkCmdPipelineBarrier(cmd, from, to, 0, 1, &b, 0, nullptr, 0, nullptr);
+    ctx.fn.vkCmdPipelineBarrier(cmd, from, to, 0, 1, &b, 0, nullptr, 0, nullptr);
   };
   ctx.submitAndWait([&](VkCommandBuffer cmd) {
     // Uploads (host writes, staging copies) before the shader reads.
@@ -512,8 +512,8 @@ double GpuRenderer::Impl::submitBatches(GpuPush& push, uint32_t first, uint32_t 
             VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
             VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
     if (queries) {
-      vkCmdResetQueryPool(cmd, queries, 0, 2);
-      vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
+      ctx.fn.vkCmdResetQueryPool(cmd, queries, 0, 2);
+      ctx.fn.vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
     }
     for (uint32_t k = 0; k < count; ++k) {
       // Each batch reads the pixel states the previous one wrote.
@@ -524,13 +524,13 @@ double GpuRenderer::Impl::submitBatches(GpuPush& push, uint32_t first, uint32_t 
       push.batchLimit = limit;
       pipeline->dispatch(cmd, &push, groupsX, groupsY);
     }
-    if (queries) vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
+    if (queries) ctx.fn.vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
     barrier(cmd, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_HOST_READ_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
             VK_PIPELINE_STAGE_HOST_BIT);
   });
   if (!queries) return 0.0;
   uint64_t stamps[2];
-  vk::check(vkGetQueryPoolResults(ctx.device, queries, 0, 2, sizeof(stamps), stamps, sizeof(uint64_t),
+  vk::check(ctx.fn.vkGetQueryPoolResults(ctx.device, queries, 0, 2, sizeof(stamps), stamps, sizeof(uint64_t),
                                   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
             "vkGetQueryPoolResults");
   return double((stamps[1] - stamps[0]) & timestampMask) * double(ctx.info.timestampPeriodNs) * 1e-9;

@@ -195,7 +195,7 @@ TEST(GpuDevice, ValidationMessagesAreCounted) {
     info.size = 0;
     info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
     VkBuffer buffer = VK_NULL_HANDLE;
-    if (vkCreateBuffer(ctx.device, &info, nullptr, &buffer) == VK_SUCCESS && buffer) vkDestroyBuffer(ctx.device, buffer, nullptr);
+    if (ctx.fn.vkCreateBuffer(ctx.device, &info, nullptr, &buffer) == VK_SUCCESS && buffer) ctx.fn.vkDestroyBuffer(ctx.device, buffer, nullptr);
   }
   EXPECT_GE(log->errors, 1u);
 }
@@ -251,7 +251,7 @@ TEST_P(GpuHealpix, MatchesCpu) {
     ctx.submitAndWait([&](VkCommandBuffer cmd) {
       pipeline.dispatch(cmd, push, n / 64, 1);
       VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER, nullptr, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_HOST_READ_BIT};
-      vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &b, 0, nullptr,
+      ctx.fn.vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &b, 0, nullptr,
                            0, nullptr);
     });
     pixels.invalidate();
@@ -735,19 +735,19 @@ TEST(GpuFaults, OutOfMemoryAndTimeoutAreErrors) {
 
   VkEventCreateInfo ei{VK_STRUCTURE_TYPE_EVENT_CREATE_INFO};
   VkEvent event = VK_NULL_HANDLE;
-  ASSERT_EQ(vkCreateEvent(ctx.device, &ei, nullptr, &event), VK_SUCCESS);
+  ASSERT_EQ(ctx.fn.vkCreateEvent(ctx.device, &ei, nullptr, &event), VK_SUCCESS);
   try {
     ctx.submitAndWait([&](VkCommandBuffer cmd) {
-      vkCmdWaitEvents(cmd, 1, &event, VK_PIPELINE_STAGE_HOST_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, nullptr, 0,
+      ctx.fn.vkCmdWaitEvents(cmd, 1, &event, VK_PIPELINE_STAGE_HOST_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0, nullptr, 0,
                       nullptr, 0, nullptr);
     });
     ADD_FAILURE() << "a submission that cannot finish returned";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("did not finish within 0.5 s"), std::string::npos) << e.what();
   }
-  vkSetEvent(ctx.device, event);
-  vkDeviceWaitIdle(ctx.device);
-  vkDestroyEvent(ctx.device, event, nullptr);
+  ctx.fn.vkSetEvent(ctx.device, event);
+  ctx.fn.vkDeviceWaitIdle(ctx.device);
+  ctx.fn.vkDestroyEvent(ctx.device, event, nullptr);
 }
 
 }  // namespace

@@ -57,9 +57,9 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size, MemoryUse use, VkBufferUsageFlag
     info.usage = usage | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT |
                  VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-    check(vkCreateBuffer(ctx.device, &info, nullptr, &buffer_), "vkCreateBuffer");
+    check(ctx.fn.vkCreateBuffer(ctx.device, &info, nullptr, &buffer_), "vkCreateBuffer");
     VkMemoryRequirements req;
-    vkGetBufferMemoryRequirements(ctx.device, buffer_, &req);
+    ctx.fn.vkGetBufferMemoryRequirements(ctx.device, buffer_, &req);
     const uint32_t type = chooseMemoryType(ctx.memory, req.memoryTypeBits, use);
     const VkMemoryPropertyFlags flags = ctx.memory.memoryTypes[type].propertyFlags;
     VkMemoryAllocateFlagsInfo flagsInfo{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO};
@@ -68,16 +68,16 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size, MemoryUse use, VkBufferUsageFlag
     alloc.pNext = &flagsInfo;
     alloc.allocationSize = req.size;
     alloc.memoryTypeIndex = type;
-    check(vkAllocateMemory(ctx.device, &alloc, nullptr, &memory_),
+    check(ctx.fn.vkAllocateMemory(ctx.device, &alloc, nullptr, &memory_),
           fmt::format("vkAllocateMemory ({:.1f} MiB)", double(req.size) / (1 << 20)).c_str());
-    check(vkBindBufferMemory(ctx.device, buffer_, memory_, 0), "vkBindBufferMemory");
+    check(ctx.fn.vkBindBufferMemory(ctx.device, buffer_, memory_, 0), "vkBindBufferMemory");
     if (flags & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT) {
-      check(vkMapMemory(ctx.device, memory_, 0, VK_WHOLE_SIZE, 0, &mapped_), "vkMapMemory");
+      check(ctx.fn.vkMapMemory(ctx.device, memory_, 0, VK_WHOLE_SIZE, 0, &mapped_), "vkMapMemory");
       coherent_ = flags & VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
     }
     VkBufferDeviceAddressInfo addressInfo{VK_STRUCTURE_TYPE_BUFFER_DEVICE_ADDRESS_INFO};
     addressInfo.buffer = buffer_;
-    address_ = vkGetBufferDeviceAddress(ctx.device, &addressInfo);
+    address_ = ctx.fn.vkGetBufferDeviceAddress(ctx.device, &addressInfo);
   } catch (...) {
     release();
     throw;
@@ -104,9 +104,9 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
 
 void Buffer::release() {
   if (!ctx_) return;
-  if (mapped_) vkUnmapMemory(ctx_->device, memory_);
-  if (buffer_) vkDestroyBuffer(ctx_->device, buffer_, nullptr);
-  if (memory_) vkFreeMemory(ctx_->device, memory_, nullptr);
+  if (mapped_) ctx_->fn.vkUnmapMemory(ctx_->device, memory_);
+  if (buffer_) ctx_->fn.vkDestroyBuffer(ctx_->device, buffer_, nullptr);
+  if (memory_) ctx_->fn.vkFreeMemory(ctx_->device, memory_, nullptr);
   mapped_ = nullptr;
   buffer_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;
@@ -122,7 +122,7 @@ void Buffer::upload(const void* data, size_t bytes) {
       VkMappedMemoryRange range{VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE};
       range.memory = memory_;
       range.size = VK_WHOLE_SIZE;
-      check(vkFlushMappedMemoryRanges(ctx_->device, 1, &range), "vkFlushMappedMemoryRanges");
+      check(ctx_->fn.vkFlushMappedMemoryRanges(ctx_->device, 1, &range), "vkFlushMappedMemoryRanges");
     }
     return;
   }
@@ -130,7 +130,7 @@ void Buffer::upload(const void* data, size_t bytes) {
   staging.upload(data, bytes);
   ctx_->submitAndWait([&](VkCommandBuffer cmd) {
     VkBufferCopy region{0, 0, bytes};
-    vkCmdCopyBuffer(cmd, staging.handle(), buffer_, 1, &region);
+    ctx_->fn.vkCmdCopyBuffer(cmd, staging.handle(), buffer_, 1, &region);
   });
 }
 
@@ -139,7 +139,7 @@ void Buffer::invalidate() {
   VkMappedMemoryRange range{VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE};
   range.memory = memory_;
   range.size = VK_WHOLE_SIZE;
-  check(vkInvalidateMappedMemoryRanges(ctx_->device, 1, &range), "vkInvalidateMappedMemoryRanges");
+  check(ctx_->fn.vkInvalidateMappedMemoryRanges(ctx_->device, 1, &range), "vkInvalidateMappedMemoryRanges");
 }
 
 }  // namespace ht::vk

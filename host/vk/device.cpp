@@ -303,15 +303,15 @@ Context::Context(const ContextOptions& options)
     deviceInfo.queueCreateInfoCount = 1;
     deviceInfo.pQueueCreateInfos = &queueInfo;
     check(vkCreateDevice(physical, &deviceInfo, nullptr, &device), "vkCreateDevice");
-    volkLoadDevice(device);
-    vkGetDeviceQueue(device, queueFamily, 0, &queue);
+    volkLoadDeviceTable(&fn, device);
+    fn.vkGetDeviceQueue(device, queueFamily, 0, &queue);
 
     VkCommandPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
     poolInfo.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT | VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
     poolInfo.queueFamilyIndex = queueFamily;
-    check(vkCreateCommandPool(device, &poolInfo, nullptr, &commandPool), "vkCreateCommandPool");
+    check(fn.vkCreateCommandPool(device, &poolInfo, nullptr, &commandPool), "vkCreateCommandPool");
     VkFenceCreateInfo fenceInfo{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    check(vkCreateFence(device, &fenceInfo, nullptr, &fence_), "vkCreateFence");
+    check(fn.vkCreateFence(device, &fenceInfo, nullptr, &fence_), "vkCreateFence");
   } catch (...) {
     destroy();
     throw;
@@ -322,10 +322,10 @@ Context::~Context() { destroy(); }
 
 void Context::destroy() {
   if (device) {
-    vkDeviceWaitIdle(device);
-    if (fence_) vkDestroyFence(device, fence_, nullptr);
-    if (commandPool) vkDestroyCommandPool(device, commandPool, nullptr);
-    vkDestroyDevice(device, nullptr);
+    fn.vkDeviceWaitIdle(device);
+    if (fence_) fn.vkDestroyFence(device, fence_, nullptr);
+    if (commandPool) fn.vkDestroyCommandPool(device, commandPool, nullptr);
+    fn.vkDestroyDevice(device, nullptr);
   }
   if (messenger_) vkDestroyDebugUtilsMessengerEXT(instance, messenger_, nullptr);
   if (instance) vkDestroyInstance(instance, nullptr);
@@ -342,28 +342,29 @@ void Context::submitAndWait(const std::function<void(VkCommandBuffer)>& record) 
   alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
   alloc.commandBufferCount = 1;
   VkCommandBuffer cmd = VK_NULL_HANDLE;
-  check(vkAllocateCommandBuffers(device, &alloc, &cmd), "vkAllocateCommandBuffers");
+  check(fn.vkAllocateCommandBuffers(device, &alloc, &cmd), "vkAllocateCommandBuffers");
   struct Free {
+    const VolkDeviceTable& fn;
     VkDevice device;
     VkCommandPool pool;
     VkCommandBuffer cmd;
     bool pending = false;  // still executing: left to the pool's destruction
     ~Free() {
-      if (!pending) vkFreeCommandBuffers(device, pool, 1, &cmd);
+      if (!pending) fn.vkFreeCommandBuffers(device, pool, 1, &cmd);
     }
-  } freeLater{device, commandPool, cmd};
+  } freeLater{fn, device, commandPool, cmd};
   VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-  check(vkBeginCommandBuffer(cmd, &begin), "vkBeginCommandBuffer");
+  check(fn.vkBeginCommandBuffer(cmd, &begin), "vkBeginCommandBuffer");
   record(cmd);
-  check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer");
+  check(fn.vkEndCommandBuffer(cmd), "vkEndCommandBuffer");
   VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
   submit.commandBufferCount = 1;
   submit.pCommandBuffers = &cmd;
-  check(vkResetFences(device, 1, &fence_), "vkResetFences");
-  check(vkQueueSubmit(queue, 1, &submit, fence_), "vkQueueSubmit");
+  check(fn.vkResetFences(device, 1, &fence_), "vkResetFences");
+  check(fn.vkQueueSubmit(queue, 1, &submit, fence_), "vkQueueSubmit");
   const VkResult waited =
-      vkWaitForFences(device, 1, &fence_, VK_TRUE, uint64_t(std::max(submitTimeoutSeconds_, 0.0) * 1e9));
+      fn.vkWaitForFences(device, 1, &fence_, VK_TRUE, uint64_t(std::max(submitTimeoutSeconds_, 0.0) * 1e9));
   freeLater.pending = waited != VK_SUCCESS;
   if (waited == VK_TIMEOUT)
     throw Error(fmt::format("the GPU did not finish within {:g} s (device hung or far too slow; "

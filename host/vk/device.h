@@ -1,9 +1,10 @@
 // Vulkan instance and device through volk: the loader is opened explicitly
 // (volkInitialize -> vkCreateInstance -> volkLoadInstanceOnly -> device ->
-// volkLoadDevice), devices are ranked discrete > integrated > virtual > CPU,
-// and validation messages, when asked for, are counted.
+// volkLoadDeviceTable), devices are ranked discrete > integrated > virtual >
+// CPU, and validation messages, when asked for, are counted.
 //
-// volk keeps one global table of device functions: one Context at a time.
+// Each Context calls its device through its own function table (fn), so
+// several may live at once, on different devices and drivers.
 #pragma once
 
 #include <volk.h>
@@ -76,6 +77,7 @@ class Context {
   uint32_t queueFamily = 0;
   VkCommandPool commandPool = VK_NULL_HANDLE;
   VkPhysicalDeviceMemoryProperties memory{};
+  VolkDeviceTable fn{};  // the device's functions: ctx.fn.vkCmdDispatch(...)
   PhysicalDeviceInfo info;
   bool float64 = false;  // shaderFloat64 enabled
 

@@ -159,7 +159,7 @@ ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::spa
     VkShaderModuleCreateInfo moduleInfo{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
     moduleInfo.codeSize = code.size() * 4;
     moduleInfo.pCode = code.data();
-    check(vkCreateShaderModule(ctx.device, &moduleInfo, nullptr, &module_), "vkCreateShaderModule");
+    check(ctx.fn.vkCreateShaderModule(ctx.device, &moduleInfo, nullptr, &module_), "vkCreateShaderModule");
 
     std::vector<VkDescriptorSetLayoutBinding> layoutBindings;
     for (const BindingLayout& b : bindings)
@@ -167,7 +167,7 @@ ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::spa
     VkDescriptorSetLayoutCreateInfo setInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
     setInfo.bindingCount = uint32_t(layoutBindings.size());
     setInfo.pBindings = layoutBindings.data();
-    check(vkCreateDescriptorSetLayout(ctx.device, &setInfo, nullptr, &setLayout_), "vkCreateDescriptorSetLayout");
+    check(ctx.fn.vkCreateDescriptorSetLayout(ctx.device, &setInfo, nullptr, &setLayout_), "vkCreateDescriptorSetLayout");
 
     VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, pushConstantSize};
     VkPipelineLayoutCreateInfo layoutInfo{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
@@ -175,7 +175,7 @@ ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::spa
     layoutInfo.pSetLayouts = &setLayout_;
     layoutInfo.pushConstantRangeCount = pushConstantSize > 0 ? 1 : 0;
     layoutInfo.pPushConstantRanges = &range;
-    check(vkCreatePipelineLayout(ctx.device, &layoutInfo, nullptr, &layout_), "vkCreatePipelineLayout");
+    check(ctx.fn.vkCreatePipelineLayout(ctx.device, &layoutInfo, nullptr, &layout_), "vkCreatePipelineLayout");
 
     VkComputePipelineCreateInfo pipelineInfo{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
     pipelineInfo.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
@@ -188,7 +188,7 @@ ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::spa
                                   specialization.data()};
     if (!specialization.empty()) pipelineInfo.stage.pSpecializationInfo = &specInfo;
     pipelineInfo.layout = layout_;
-    check(vkCreateComputePipelines(ctx.device, VK_NULL_HANDLE, 1, &pipelineInfo, nullptr, &pipeline_),
+    check(ctx.fn.vkCreateComputePipelines(ctx.device, VK_NULL_HANDLE, 1, &pipelineInfo, nullptr, &pipeline_),
           "vkCreateComputePipelines");
 
     VkDescriptorPoolSize poolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, uint32_t(bindings.size())};
@@ -196,12 +196,12 @@ ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::spa
     poolInfo.maxSets = 1;
     poolInfo.poolSizeCount = 1;
     poolInfo.pPoolSizes = &poolSize;
-    check(vkCreateDescriptorPool(ctx.device, &poolInfo, nullptr, &pool_), "vkCreateDescriptorPool");
+    check(ctx.fn.vkCreateDescriptorPool(ctx.device, &poolInfo, nullptr, &pool_), "vkCreateDescriptorPool");
     VkDescriptorSetAllocateInfo alloc{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
     alloc.descriptorPool = pool_;
     alloc.descriptorSetCount = 1;
     alloc.pSetLayouts = &setLayout_;
-    check(vkAllocateDescriptorSets(ctx.device, &alloc, &set_), "vkAllocateDescriptorSets");
+    check(ctx.fn.vkAllocateDescriptorSets(ctx.device, &alloc, &set_), "vkAllocateDescriptorSets");
   } catch (...) {
     destroy();
     throw;
@@ -211,11 +211,11 @@ ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::spa
 ComputePipeline::~ComputePipeline() { destroy(); }
 
 void ComputePipeline::destroy() {
-  if (pool_) vkDestroyDescriptorPool(ctx_.device, pool_, nullptr);
-  if (pipeline_) vkDestroyPipeline(ctx_.device, pipeline_, nullptr);
-  if (layout_) vkDestroyPipelineLayout(ctx_.device, layout_, nullptr);
-  if (setLayout_) vkDestroyDescriptorSetLayout(ctx_.device, setLayout_, nullptr);
-  if (module_) vkDestroyShaderModule(ctx_.device, module_, nullptr);
+  if (pool_) ctx_.fn.vkDestroyDescriptorPool(ctx_.device, pool_, nullptr);
+  if (pipeline_) ctx_.fn.vkDestroyPipeline(ctx_.device, pipeline_, nullptr);
+  if (layout_) ctx_.fn.vkDestroyPipelineLayout(ctx_.device, layout_, nullptr);
+  if (setLayout_) ctx_.fn.vkDestroyDescriptorSetLayout(ctx_.device, setLayout_, nullptr);
+  if (module_) ctx_.fn.vkDestroyShaderModule(ctx_.device, module_, nullptr);
   pool_ = VK_NULL_HANDLE;
   pipeline_ = VK_NULL_HANDLE;
   layout_ = VK_NULL_HANDLE;
@@ -231,15 +231,15 @@ void ComputePipeline::setBuffer(uint32_t binding, const Buffer& buffer) {
   write.descriptorCount = 1;
   write.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   write.pBufferInfo = &info;
-  vkUpdateDescriptorSets(ctx_.device, 1, &write, 0, nullptr);
+  ctx_.fn.vkUpdateDescriptorSets(ctx_.device, 1, &write, 0, nullptr);
 }
 
 void ComputePipeline::dispatch(VkCommandBuffer cmd, const void* pushConstants, uint32_t groupsX, uint32_t groupsY,
                                uint32_t groupsZ) const {
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_);
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_, 0, 1, &set_, 0, nullptr);
-  if (pushSize_ > 0) vkCmdPushConstants(cmd, layout_, VK_SHADER_STAGE_COMPUTE_BIT, 0, pushSize_, pushConstants);
-  vkCmdDispatch(cmd, groupsX, groupsY, groupsZ);
+  ctx_.fn.vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_);
+  ctx_.fn.vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_, 0, 1, &set_, 0, nullptr);
+  if (pushSize_ > 0) ctx_.fn.vkCmdPushConstants(cmd, layout_, VK_SHADER_STAGE_COMPUTE_BIT, 0, pushSize_, pushConstants);
+  ctx_.fn.vkCmdDispatch(cmd, groupsX, groupsY, groupsZ);
 }
 
 }  // namespace ht::vk
