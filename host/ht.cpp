@@ -89,27 +89,30 @@ Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry, int 
   return c;
 }
 
-std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry, int levels) {
+std::vector<Occluder> occluders(const Scene& scene, const ShadingPoint& sp) {
   const Environment& env = scene.environment;
-  std::vector<Cap> caps;
-  caps.reserve(scene.spheres.size() + scene.planes.size());
-  auto addCap = [&](const glm::vec3& axis, float angle) { caps.push_back(makeCap(axis, angle, geometry, levels)); };
-  // Caps shrink by a milliradian so that "inside" always means blocked.
-  // They are seen from where the shadow rays start: a hit point rounded
-  // to just below its own plane would otherwise see the sky as blocked.
-  constexpr float kMargin = 1e-3f;
+  std::vector<Occluder> out;
+  out.reserve(scene.spheres.size() + scene.planes.size());
   const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
   for (const Sphere& s : scene.spheres) {
-    glm::vec3 d = s.center - origin;
-    float dist = glm::length(d);
-    if (dist <= 0.0f) continue;
-    float angle = std::asin(std::min(1.0f, s.radius / dist)) - kMargin;
-    if (angle > 0.0f) addCap(glm::normalize(toFloat(env.toHealpixFrame(d / dist))), angle);
+    const glm::vec3 d = s.center - origin;
+    const float dist = glm::length(d);
+    if (!(dist > 0.0f)) continue;
+    out.push_back({glm::normalize(toFloat(env.toHealpixFrame(d / dist))), std::min(1.0f, s.radius / dist)});
   }
   for (const Plane& p : scene.planes) {
-    float side = glm::dot(origin - p.point, p.normal);
-    glm::vec3 below = side >= 0.0f ? -p.normal : p.normal;
-    addCap(glm::normalize(toFloat(env.toHealpixFrame(below))), 0.5f * kPi - kMargin);
+    const glm::vec3 below = glm::dot(origin - p.point, p.normal) >= 0.0f ? -p.normal : p.normal;
+    out.push_back({glm::normalize(toFloat(env.toHealpixFrame(below))), 1.0f});
+  }
+  return out;
+}
+
+std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry, int levels) {
+  std::vector<Cap> caps;
+  for (const Occluder& o : occluders(scene, sp)) {
+    // A plane's far side: pi/2 exactly as the shaders' kHtPlaneCapAngle.
+    const float angle = (o.sinHalfAngle == 1.0f ? 0.5f * kPi : std::asin(o.sinHalfAngle)) - kCapMargin;
+    if (angle > 0.0f) caps.push_back(makeCap(o.axis, angle, geometry, levels));
   }
   return caps;
 }
@@ -448,8 +451,7 @@ glm::vec3 estimateHt(const Scene& scene, const ShadingPoint& sp, const HtOptions
     glm::vec3 fcos = s.averaged ? evalBsdf(*sp.material, ht.woLocal, ht.frame.toLocal(s.brdfDir))
                                 : evalBsdf(*sp.material, woLocal, shading.toLocal(s.dir));
     if (fcos == glm::vec3(0.0f) || radiance == glm::vec3(0.0f)) continue;
-    ++counters.shadowRays;
-    if (occluded(scene, origin, s.dir)) continue;
+    if (!unoccluded(scene, origin, s.dir, counters)) continue;
     sum += glm::dvec3(fcos * radiance) * double(s.weight);
   }
   counters.directions += hc.samples;

@@ -95,8 +95,17 @@ Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry, int 
 inline Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry) {
   return makeCap(axis, angle, geometry, geometry.order + 1);
 }
-// The caps of every sphere and plane as seen from the shading point's
-// shadow-ray origin.
+// Every sphere and plane as seen from the shading point's shadow-ray origin
+// (offsetRayOrigin): a hit point rounded to just below its own plane would
+// otherwise see the sky as blocked.
+struct Occluder {
+  glm::vec3 axis;      // HEALPix frame
+  float sinHalfAngle;  // of the cap it blocks; 1 for a plane's far side
+};
+std::vector<Occluder> occluders(const Scene& scene, const ShadingPoint& sp);
+// Caps shrink by this (radians) so that "inside" always means blocked.
+constexpr float kCapMargin = 1e-3f;
+// The caps of every occluder.
 std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry, int levels);
 inline std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry) {
   return visibilityCaps(scene, sp, geometry, geometry.order + 1);

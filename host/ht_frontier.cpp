@@ -87,23 +87,14 @@ struct LightCap {
   float cosA, sinA;
 };
 
+// HT's caps (visibilityCaps) with their half-angle A by its cosine and sine.
 void lightCaps(const Scene& scene, const ShadingPoint& sp, std::vector<LightCap>& caps) {
-  constexpr float kMargin = 1e-3f;
-  const float cm = std::cos(kMargin), sm = std::sin(kMargin);
-  const Environment& env = scene.environment;
-  const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
+  const float cm = std::cos(kCapMargin), sm = std::sin(kCapMargin);
   caps.clear();
-  for (const Sphere& s : scene.spheres) {
-    const glm::vec3 d = s.center - origin;
-    const float dist = glm::length(d);
-    if (!(dist > 0.0f)) continue;
-    const float s0 = std::min(1.0f, s.radius / dist), c0 = std::sqrt(1.0f - s0 * s0);
+  for (const Occluder& o : occluders(scene, sp)) {
+    const float s0 = o.sinHalfAngle, c0 = std::sqrt(1.0f - s0 * s0);
     const float sinA = s0 * cm - c0 * sm;  // sin(asin(s0) - margin)
-    if (sinA > 0.0f) caps.push_back({glm::normalize(glm::vec3(env.toHealpixFrame(d / dist))), c0 * cm + s0 * sm, sinA});
-  }
-  for (const Plane& p : scene.planes) {
-    const glm::vec3 below = glm::dot(origin - p.point, p.normal) >= 0.0f ? -p.normal : p.normal;
-    caps.push_back({glm::normalize(glm::vec3(env.toHealpixFrame(below))), sm, cm});
+    if (sinA > 0.0f) caps.push_back({o.axis, c0 * cm + s0 * sm, sinA});
   }
 }
 

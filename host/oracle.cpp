@@ -69,8 +69,7 @@ struct Point {
     double v = luminance(evalBsdf(*sp.material, woLocal, frame.toLocal(c)));
     if (v <= 0.0) return 0.0;
     peak = std::max(peak, v);
-    ++counters.shadowRays;
-    if (!occluded(scene, origin, c)) return v;
+    if (unoccluded(scene, origin, c, counters)) return v;
     shadowed += v;
     return 0.0;
   }
@@ -180,8 +179,7 @@ glm::vec3 estimateOracle(const Scene& scene, const ShadingPoint& sp, int spp, in
     ++counters.directions;
     glm::vec3 fcos = evalBsdf(*sp.material, point.woLocal, frame.toLocal(wi));
     if (fcos == glm::vec3(0.0f)) continue;
-    ++counters.shadowRays;
-    if (occluded(scene, point.origin, wi)) continue;
+    if (!unoccluded(scene, point.origin, wi, counters)) continue;
     double pdf = prob / healpix::pixelSolidAngle(finest);
     result += glm::dvec3(fcos * env.radiance[node >> (2 * (finest - env.order))]) / pdf;
   }

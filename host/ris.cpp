@@ -73,8 +73,7 @@ glm::vec3 estimateRis(const Scene& scene, const ShadingPoint& sp, int spp, int c
     counters.directions += uint64_t(s.candidates);
     const double weight = s.contributionWeight();
     if (!(weight > 0.0)) continue;
-    ++counters.shadowRays;
-    if (!occluded(scene, origin, s.chosen.dir)) sum += glm::dvec3(s.chosen.radiance * s.chosen.fcos) * weight;
+    if (unoccluded(scene, origin, s.chosen.dir, counters)) sum += glm::dvec3(s.chosen.radiance * s.chosen.fcos) * weight;
   }
   return glm::vec3(sum / double(spp));
 }

@@ -28,6 +28,12 @@ struct EstimateCounters {
 
 // The shading frame and ray origin of a point, and the integrand for a
 // direction: f cos V L, counting one shadow ray where f cos L is not zero.
+// One shadow ray from `origin`, counted: true when nothing blocks wi.
+inline bool unoccluded(const Scene& scene, const glm::vec3& origin, const glm::vec3& wi, EstimateCounters& counters) {
+  ++counters.shadowRays;
+  return !occluded(scene, origin, wi);
+}
+
 struct Shading {
   const Scene& scene;
   const Material& material;
@@ -49,8 +55,7 @@ struct Shading {
     if (radiance == glm::vec3(0.0f)) return glm::vec3(0.0f);
     glm::vec3 fcos = evalBsdf(material, woLocal, frame.toLocal(wi));
     if (fcos == glm::vec3(0.0f)) return fcos;
-    ++counters.shadowRays;
-    return occluded(scene, origin, wi) ? glm::vec3(0.0f) : fcos * radiance;
+    return unoccluded(scene, origin, wi, counters) ? fcos * radiance : glm::vec3(0.0f);
   }
   glm::vec3 reflected(const glm::vec3& wi) const { return reflected(wi, scene.environment.eval(wi)); }
 };

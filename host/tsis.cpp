@@ -229,8 +229,7 @@ glm::vec3 estimateTsis(const Scene& scene, const ShadingPoint& sp, int spp, cons
     if (radiance == glm::vec3(0.0f)) continue;
     const glm::vec3 fcos = evalBsdf(mat, woLocal, frame.toLocal(s.dir));
     if (fcos == glm::vec3(0.0f)) continue;
-    ++counters.shadowRays;
-    if (!occluded(scene, origin, s.dir)) sum += glm::dvec3(radiance * fcos) / s.pdf;
+    if (unoccluded(scene, origin, s.dir, counters)) sum += glm::dvec3(radiance * fcos) / s.pdf;
   }
   return glm::vec3(sum / double(spp));
 }

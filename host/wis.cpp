@@ -178,8 +178,7 @@ glm::vec3 estimateWis(const Scene& scene, const ShadingPoint& sp, int spp, int o
       if (fcos == glm::vec3(0.0f)) continue;
       value = glm::dvec3(radiance * fcos) / s.pdf;
     }
-    ++counters.shadowRays;
-    if (!occluded(scene, origin, s.dir)) sum += value;
+    if (unoccluded(scene, origin, s.dir, counters)) sum += value;
   }
   return glm::vec3(sum / double(spp));
 }
