@@ -33,14 +33,6 @@ using namespace ht::gpu;
 // lavapipe with 2 cores for mis, far less on a GPU).
 constexpr uint64_t kDirectionsPerDispatch = uint64_t(1) << 22;
 
-static_assert(int(Method::Uniform) == HT_METHOD_UNIFORM && int(Method::Cosine) == HT_METHOD_COSINE &&
-              int(Method::Env) == HT_METHOD_ENV && int(Method::Brdf) == HT_METHOD_BRDF &&
-              int(Method::Mis) == HT_METHOD_MIS && int(Method::Ht) == HT_METHOD_HT &&
-              int(Method::HtVis) == HT_METHOD_HT_VIS && int(Method::HtBiased) == HT_METHOD_HT_BIASED &&
-              int(Method::HtVisBiased) == HT_METHOD_HT_VIS_BIASED);
-static_assert(int(Method::Oracle) == HT_METHOD_ORACLE && int(Method::Wis) == HT_METHOD_WIS &&
-              int(Method::WisBiased) == HT_METHOD_WIS_BIASED && int(Method::Tsis) == HT_METHOD_TSIS &&
-              int(Method::Ris) == HT_METHOD_RIS);
 static_assert(BrdfTable::kMargin == float(HT_BRDF_TABLE_MARGIN));
 static_assert(uint32_t(SamplerKind::Independent) == HT_SAMPLER_INDEPENDENT &&
               uint32_t(SamplerKind::Stratified) == HT_SAMPLER_STRATIFIED);

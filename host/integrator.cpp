@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 
+#include "common.h"  // shaders/common.h: the method numbers
+
 #include "env_sampler.h"
 #include "ht.h"
 #include "ht_frontier.h"
@@ -51,6 +53,15 @@ constexpr bool registryInEnumOrder() {
   return true;
 }
 static_assert(registryInEnumOrder(), "one row per Method, in the enum's order");
+// The shaders know the methods by these numbers (shaders/common.h).
+static_assert(int(Method::Uniform) == HT_METHOD_UNIFORM && int(Method::Cosine) == HT_METHOD_COSINE &&
+              int(Method::Env) == HT_METHOD_ENV && int(Method::Brdf) == HT_METHOD_BRDF &&
+              int(Method::Mis) == HT_METHOD_MIS && int(Method::Ht) == HT_METHOD_HT &&
+              int(Method::HtVis) == HT_METHOD_HT_VIS && int(Method::HtBiased) == HT_METHOD_HT_BIASED &&
+              int(Method::HtVisBiased) == HT_METHOD_HT_VIS_BIASED);
+static_assert(int(Method::Oracle) == HT_METHOD_ORACLE && int(Method::Wis) == HT_METHOD_WIS &&
+              int(Method::WisBiased) == HT_METHOD_WIS_BIASED && int(Method::Tsis) == HT_METHOD_TSIS &&
+              int(Method::Ris) == HT_METHOD_RIS);
 
 float powerHeuristic(float a, float b) {
   float a2 = a * a, b2 = b * b;
