@@ -171,6 +171,7 @@ std::string shaderDirNextToExecutable() {
 struct GpuRenderer::Impl {
   vk::Context ctx;
   GpuDeviceInfo info;
+  GpuPrecision precision;
   std::string shaderDir;
   std::string shaderName;  // the current pipeline's SPIR-V file
   std::optional<vk::ComputePipeline> pipeline;
@@ -205,6 +206,11 @@ struct GpuRenderer::Impl {
   bool recordHtSamples = false;
   vk::Buffer htSampleLog;
 
+  // The shader variant the method runs in.
+  bool usesFloat64(Method method) const {
+    if (!ctx.float64) return false;
+    return precision == GpuPrecision::Fp64 || (precision == GpuPrecision::Auto && methodInfo(method).gpuFloat64);
+  }
   void uploadTables(const RenderSettings& s, const MethodTables& tables);
   void checkMethod(const RenderSettings& s) const;
   std::pair<uint32_t, uint32_t> prepareTiles(const RenderSettings& s);
@@ -214,7 +220,8 @@ struct GpuRenderer::Impl {
   void readTile(const RenderSettings& s, const GpuPush& push, GpuRenderResult& out);
 
   explicit Impl(const GpuOptions& o)
-      : ctx(vk::ContextOptions{o.deviceIndex, o.validation, !o.forceFp32, o.validationLog}) {
+      : ctx(vk::ContextOptions{o.deviceIndex, o.validation, o.precision != GpuPrecision::Fp32, o.validationLog}),
+        precision(o.precision) {
     info = toInfo(ctx.info);
     recordHtSamples = o.recordHtSamples;
     batchLimit = o.batchLimit;
@@ -237,7 +244,8 @@ struct GpuRenderer::Impl {
   void usePipeline(Method method) {
     if (pipelineMethod == uint32_t(method)) return;
     const uint32_t specialization[] = {uint32_t(method)};
-    shaderName = fmt::format("{}.{}.spv", familyShader(methodInfo(method).family), ctx.float64 ? "fp64" : "fp32");
+    shaderName =
+        fmt::format("{}.{}.spv", familyShader(methodInfo(method).family), usesFloat64(method) ? "fp64" : "fp32");
     pipeline.emplace(ctx, (std::filesystem::path(shaderDir) / shaderName).string(), kBindings,
                      uint32_t(sizeof(GpuPush)), std::array<uint32_t, 3>{kWorkgroupSize, kWorkgroupSize, 1},
                      specialization);
@@ -442,8 +450,10 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
   if (!gpuSupportsMethod(s.method))
     throw Error(fmt::format("method {} has no GPU version (it runs on the CPU reference only); use --device cpu",
                             methodName(s.method)));
-  if (methodInfo(s.method).gpuFloat64 && !ctx.float64)
-    throw Error(fmt::format("method {} needs shaderFloat64 on the GPU ({} has none, or fp32 was forced); "
+  if (precision == GpuPrecision::Fp64 && !ctx.float64)
+    throw Error(fmt::format("--gpu-precision fp64 needs shaderFloat64, which {} lacks", info.name));
+  if (methodInfo(s.method).gpuFloat64 && !usesFloat64(s.method))
+    throw Error(fmt::format("method {} needs shaderFloat64 on the GPU ({} has none, or --gpu-precision is fp32); "
                             "use --device cpu", methodName(s.method), info.name));
 }
 

@@ -17,11 +17,20 @@
 
 namespace ht {
 
+// The shader variant: single precision is the production path on every
+// device; the HT_FP64 variant (HEALPix lookups and HT thresholds in double)
+// reproduces the CPU reference bit for bit and needs shaderFloat64.
+enum class GpuPrecision {
+  Auto,  // fp32, except for the methods that exist in fp64 only (wis, tsis) where the device has it
+  Fp32,
+  Fp64,
+};
+
 struct GpuOptions {
   int deviceIndex = -1;     // --gpu-index; -1: discrete > integrated > virtual > CPU
   bool validation = false;  // Khronos validation layer, messages counted in validationLog
   std::shared_ptr<vk::ValidationLog> validationLog;  // null: the renderer keeps its own
-  bool forceFp32 = false;   // use the single-precision shader even where fp64 exists
+  GpuPrecision precision = GpuPrecision::Auto;
   std::string shaderDir;    // empty: shaders/ next to the executable
   int maxTileSide = 512;    // tiles are at most this many pixels wide and high (a multiple of 8)
   bool recordHtSamples = false;  // ht*: keep the first 64 accepted samples of every pixel (tests)
@@ -92,8 +101,8 @@ class GpuRenderer {
   GpuRenderResult render(const RenderSettings& settings);
 
   const GpuDeviceInfo& device() const;
-  bool float64() const;  // HEALPix lookups in double (HT_FP64 shader)
-  std::string shaderName() const;
+  bool float64() const;  // the device has shaderFloat64 (enabled unless the precision is fp32)
+  std::string shaderName() const;  // the SPIR-V file of the last render
   const vk::ValidationLog& validationLog() const;
 
  private:

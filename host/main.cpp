@@ -33,6 +33,7 @@ struct RenderOptions {
   std::string method = "mis";
   std::string device = "auto";
   int gpuIndex = -1;
+  std::string gpuPrecision = "auto";
   std::string out = "out/render.exr";
   std::string stats;
   int spp = 16;
@@ -90,6 +91,9 @@ std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, Method method, std:
   try {
     GpuOptions g;
     g.deviceIndex = o.gpuIndex;
+    g.precision = o.gpuPrecision == "fp64"   ? GpuPrecision::Fp64
+                  : o.gpuPrecision == "fp32" ? GpuPrecision::Fp32
+                                             : GpuPrecision::Auto;
     if (o.device == "auto" && o.gpuIndex < 0) {
       std::vector<GpuDeviceInfo> devices = listGpuDevices();
       int best = defaultGpuDevice(devices);
@@ -196,7 +200,7 @@ nlohmann::json renderStats(const RenderOptions& o, const Scene& scene, const Ren
       {"seed", rs.seed},
       {"device", gpu ? nlohmann::json{{"type", "gpu"}, {"name", gpu->device().name}, {"vulkan_type", gpu->device().type},
                                         {"driver", gpu->device().driver}, {"vulkan", gpu->device().apiVersion},
-                                        {"shader", gpu->shaderName()}}
+                                        {"shader", gpu->shaderName()}, {"precision", o.gpuPrecision}}
                      : nlohmann::json{{"type", "cpu"}, {"name", cpuName()}, {"threads", tbb::info::default_concurrency()}}},
       {"environment",
        {{"file", scene.environmentDesc.file},
@@ -339,6 +343,11 @@ void addRenderOptions(CLI::App& r, RenderOptions& o) {
       ->capture_default_str();
   r.add_option("--gpu-index", o.gpuIndex, "Vulkan device for --device gpu/auto (see `htrender info`)")
       ->check(CLI::NonNegativeNumber);
+  r.add_option("--gpu-precision", o.gpuPrecision,
+               "GPU shader variant: fp32 (the production path), fp64 (bit for bit the CPU reference's samples; "
+               "needs shaderFloat64) or auto (fp32; fp64 for wis and tsis, which need it)")
+      ->check(CLI::IsMember({"auto", "fp32", "fp64"}))
+      ->capture_default_str();
   r.add_option("--width", o.width, "image width (default: the scene's)")->check(CLI::Range(1, 16384));
   r.add_option("--height", o.height, "image height (default: the scene's)")->check(CLI::Range(1, 16384));
   r.add_option("--seed", o.seed, "random seed")->capture_default_str();

@@ -39,16 +39,18 @@ else
   fail "info exits $?: $(cat "$tmp/info")"
 fi
 
-# --device gpu: every baseline method, stats of a GPU run, the same image as the CPU reference.
+# --device gpu: every baseline method, stats of a GPU run, the same image as
+# the CPU reference (in fp64, the variant that draws the CPU's samples).
 for m in uniform cosine env brdf mis; do
   if VK_INSTANCE_LAYERS=VK_LAYER_KHRONOS_validation "$bin" render "${small[@]}" --method $m --device gpu \
-      --out "$tmp/g-$m.exr" --stats "$tmp/g-$m.json" >"$tmp/log" 2>&1; then
+      --gpu-precision fp64 --out "$tmp/g-$m.exr" --stats "$tmp/g-$m.json" >"$tmp/log" 2>&1; then
     grep -qi "validation" "$tmp/log" && fail "$m: validation layer output: $(head -c 2000 "$tmp/log")" || ok
     /usr/bin/python3 - "$tmp/g-$m.json" "$m" <<'PY' && ok || fail "$m: gpu stats"
 import json, sys
 s = json.load(open(sys.argv[1]))
 d = s["device"]
-assert d["type"] == "gpu" and d["name"] and d["vulkan"] and d["shader"].endswith(".spv"), d
+assert d["type"] == "gpu" and d["name"] and d["vulkan"] and d["shader"] == "baselines.fp64.spv", d
+assert d["precision"] == "fp64", d
 assert s["method"] == sys.argv[2] and s["mean_samples_per_pixel"] == (8 if sys.argv[2] == "mis" else 4), s
 sec = s["seconds"]
 assert all(k in sec for k in ("parse", "environment", "render", "write", "device", "upload", "gpu")), sec
@@ -75,6 +77,14 @@ if grep -q "auto: the CPU reference (faster than a CPU Vulkan device)" "$tmp/inf
     && ok || fail "auto with only a CPU Vulkan device: $(cat "$tmp/err")"
 fi
 
+# fp32 is the default variant; wis and tsis exist in fp64 only.
+for mp in "mis baselines.fp32.spv" "ht-vis ht.fp32.spv" "tsis competitors.fp64.spv"; do
+  set -- $mp
+  "$bin" render "${small[@]}" --device gpu --method "$1" --out "$tmp/p.exr" --stats "$tmp/p.json" 2>"$tmp/err" \
+    && /usr/bin/python3 -c "import json,sys; d=json.load(open('$tmp/p.json'))['device']; sys.exit(0 if d['shader'] == '$2' and d['precision'] == 'auto' else 1)" \
+    && ok || fail "$1: default precision: $(cat "$tmp/p.json" "$tmp/err")"
+done
+expect_error "method tsis needs shaderFloat64 on the GPU" "$bin" render "${small[@]}" --device gpu --method tsis --gpu-precision fp32 --out "$tmp/x.exr"
 expect_error "--gpu-index 99" "$bin" render "${small[@]}" --device gpu --gpu-index 99 --out "$tmp/x.exr"
 expect_error "method oracle runs on the CPU reference only" "$bin" render "${small[@]}" --device gpu --method oracle --out "$tmp/x.exr"
 "$bin" render "${loud[@]}" --method oracle --out "$tmp/oracle.exr" 2>"$tmp/err" \

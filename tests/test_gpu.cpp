@@ -66,7 +66,7 @@ GpuOptions gpuOptions(bool fp32 = false) {
   o.validation = true;
   o.validationLog = validationLog();
   o.shaderDir = kShaderDir;
-  o.forceFp32 = fp32;
+  o.precision = fp32 ? GpuPrecision::Fp32 : GpuPrecision::Fp64;
   return o;
 }
 
