@@ -102,6 +102,8 @@ vk::Buffer uploadArray(vk::Context& ctx, const std::vector<T>& items) {
 // Loop iterations one pixel may spend in one dispatch, a quarter of what
 // llvmpipe allows an invocation in all (GpuPixelState).
 constexpr uint64_t kLoopIterationsPerBatch = 16384;
+// ht*: tiles at most this wide and high (their pending samples).
+constexpr uint32_t kHtMaxTileSide = 256;
 // Batches a submission holds, at most.
 constexpr uint64_t kBatchesPerSubmission = 64;
 
@@ -190,6 +192,7 @@ struct GpuRenderer::Impl {
   vk::Buffer pixelState;   // GpuPixelState per tile pixel
   vk::Buffer tsisScratch;  // GpuTsisSlot per region and tile pixel
   vk::Buffer wisScratch;   // HT_WIS_TOP_NODES doubles per tile pixel
+  vk::Buffer htPending;    // GpuHtPending per slot and tile pixel
   // The method's tables, uploaded at their first render (the scene struct
   // uploaded again), with what they were made from.
   GpuScene scene{};
@@ -458,9 +461,11 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
 }
 
 // Square tiles, a multiple of the workgroup, sized so that one dispatch
-// draws at most kDirectionsPerDispatch directions; their buffers.
+// draws at most kDirectionsPerDispatch directions (ht*: and its pending
+// samples take at most 32 MiB); their buffers.
 std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettings& s) {
-  uint32_t side = maxTileSide;
+  const bool htMethod = methodInfo(s.method).family == Family::Ht;
+  uint32_t side = htMethod ? std::min<uint32_t>(maxTileSide, kHtMaxTileSide) : maxTileSide;
   while (side > kWorkgroupSize && uint64_t(side) * side * directionsPerPixel(s) > kDirectionsPerDispatch)
     side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
   const uint32_t tileW = std::min<uint32_t>(side, uint32_t(s.width));
@@ -478,8 +483,10 @@ std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettin
   const VkDeviceSize wisBytes = tilePixels * HT_WIS_TOP_NODES * sizeof(double);
   const bool wisMethod = s.method == Method::Wis || s.method == Method::WisBiased;
   if (wisMethod && wisScratch.size() < wisBytes) wisScratch = vk::Buffer(ctx, wisBytes, vk::MemoryUse::DeviceLocal);
+  const VkDeviceSize pendingBytes = tilePixels * HT_PENDING_SLOTS * sizeof(GpuHtPending);
+  if (htMethod && htPending.size() < pendingBytes)
+    htPending = vk::Buffer(ctx, pendingBytes, vk::MemoryUse::DeviceLocal);
   const VkDeviceSize logBytes = tilePixels * HT_SAMPLE_LOG_SLOTS * sizeof(GpuHtSample);
-  const bool htMethod = methodInfo(s.method).family == Family::Ht;
   if (htMethod && recordHtSamples && htSampleLog.size() < logBytes)
     htSampleLog = vk::Buffer(ctx, logBytes, vk::MemoryUse::Readback);
   return {tileW, tileH};
@@ -490,6 +497,7 @@ void GpuRenderer::Impl::bindScratch(const RenderSettings& s, GpuPush& push) cons
   push.tsisScratch = s.method == Method::Tsis ? tsisScratch.address() : 0;
   push.wisScratch = s.method == Method::Wis || s.method == Method::WisBiased ? wisScratch.address() : 0;
   push.pixelState = pixelState.address();
+  if (methodInfo(s.method).family == Family::Ht) push.htPending = htPending.address();
   if (methodInfo(s.method).family == Family::Ht && recordHtSamples) {
     const VkDeviceAddress a = htSampleLog.address();
     push.htSampleLog = glm::uvec2(uint32_t(a), uint32_t(a >> 32));

@@ -83,7 +83,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
     // The driver with its shader compiler (LLVM in lavapipe), as measured.
     gpu += kVulkanBytes;
     gpu += radiance + trees + sat;
-    if (isHt(in.method)) gpu += nodes * 20;
+    if (isHt(in.method)) gpu += nodes * 20 + (uint64_t(32) << 20);  // geometry; a tile's pending samples
     gpu += image * 12;  // the readback of the tiles, gathered
     add("GPU buffers", gpu);
   }

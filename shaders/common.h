@@ -70,6 +70,7 @@
 #define HT_MAX_ORDER 13  // healpix::kMaxOrder
 #define HT_MAX_BUDGET_REFINEMENTS 24
 #define HT_SAMPLE_LOG_SLOTS 64
+#define HT_PENDING_SLOTS 8  // ht*: accepted samples a pixel holds before shading them (GpuHtPending)
 // ht* with table bounds: BrdfTable's sizes (host/brdf_table.h); per material
 // HT_BRDF_TABLE_FLOATS floats: the averages, then the max pyramid's levels.
 #define HT_BRDF_TABLE_THETA_O 16
@@ -108,6 +109,7 @@ layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer Dou
 #endif
 layout(buffer_reference) buffer TsisScratch;
 layout(buffer_reference) buffer PixelStates;
+layout(buffer_reference) buffer HtPendingList;
 #if HT_FP64
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer WisScratch { double v[]; };
 #else
@@ -196,6 +198,23 @@ struct GpuHtSample {
   float weight;     // 1 / (s h)
 };
 
+// ht*: an accepted sample waiting to be shaded. The traversal loop only
+// bounds, descends and accepts; a second loop jitters, shades and sums the
+// samples in the order accepted (ht.glsl).
+struct GpuHtPending {
+  uint64_t sx;  // hreal bits: the sample's sub-cell (sx, sy) of a cells x cells grid
+  uint64_t sy;
+  uint64_t candidate;
+  uint cellOrder;  // the cell: pixel cellPix at cellOrder
+  uint cellPix;
+  uint sampleIndex;  // k for the k-th accepted sample: its sampler sample
+  uint level;
+  float cells;
+  float h;
+  uint averaged;  // biased: the BRDF at brdfDir
+  vec3 brdfDir;   // HEALPix frame
+};
+
 // Per tile pixel, kept from one dispatch of the tile to the next. A pixel's
 // estimate runs in batches of GpuPush::batchLimit samples (HT: traversal
 // steps), because Mesa's llvmpipe ends every loop of an invocation once its
@@ -222,6 +241,9 @@ struct GpuPixelState {
   uint64_t htS;  // samples per unit of h
   uint64_t htU;  // the pixel's offset
   float htPathMin[HT_MAX_ORDER + 1];
+  uint htResume;        // 1: the traversal stopped inside an acceptance (the pending list was full)
+  uint pad2;
+  uint64_t htResumeI;   // hreal bits: the next candidate of that acceptance
 };
 
 // Per dispatch (at most 128 bytes on lavapipe).
@@ -244,6 +266,7 @@ struct GpuTsisSlot {
 #ifndef __cplusplus
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer TsisScratch { GpuTsisSlot slots[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer PixelStates { GpuPixelState s[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 8) buffer HtPendingList { GpuHtPending p[]; };
 #endif
 
 struct GpuPush {
@@ -276,6 +299,7 @@ struct GpuPush {
   uint batchLimit;  // samples (ht*: traversal steps) per pixel and dispatch
   uint canaryLoops; // iterations of the loop that tells whether loops were cut short
   uint canaryZero;  // always 0: keeps the compiler from folding that loop away
+  HT_CHUNK_REF(HtPendingList) htPending;  // ht*: GpuHtPending[HT_PENDING_SLOTS per tile pixel]
 };
 
 #ifdef __cplusplus
@@ -293,15 +317,17 @@ static_assert(sizeof(GpuMaterial) == 40 && offsetof(GpuMaterial, diffuse) == 4 &
 static_assert(sizeof(GpuSphere) == 20 && offsetof(GpuSphere, radius) == 12 && offsetof(GpuSphere, material) == 16);
 static_assert(sizeof(GpuPlane) == 28 && offsetof(GpuPlane, normal) == 12 && offsetof(GpuPlane, material) == 24);
 static_assert(sizeof(GpuPixel) == 32 && offsetof(GpuPixel, shaded) == 12 && offsetof(GpuPixel, htNodes) == 24);
-static_assert(sizeof(GpuPush) == 112 && offsetof(GpuPush, seed) == 32 && offsetof(GpuPush, risCandidates) == 60 &&
+static_assert(sizeof(GpuPush) == 120 && offsetof(GpuPush, htPending) == 112 && offsetof(GpuPush, seed) == 32 && offsetof(GpuPush, risCandidates) == 60 &&
               offsetof(GpuPush, tsisScratch) == 64 && offsetof(GpuPush, wisScratch) == 72 &&
               offsetof(GpuPush, wisOrder) == 80 && offsetof(GpuPush, pixelState) == 88 &&
               offsetof(GpuPush, batch) == 96 && offsetof(GpuPush, canaryLoops) == 104);
-static_assert(sizeof(GpuPixelState) == 160 && offsetof(GpuPixelState, rng) == 24 &&
+static_assert(sizeof(GpuPixelState) == 176 && offsetof(GpuPixelState, htResumeI) == 168 && offsetof(GpuPixelState, rng) == 24 &&
               offsetof(GpuPixelState, samplerSeed) == 48 && offsetof(GpuPixelState, htLeafH) == 68 &&
               offsetof(GpuPixelState, htNode) == 72 && offsetof(GpuPixelState, htPathMin) == 104);
 static_assert(sizeof(GpuTsisSlot) == 56 && offsetof(GpuTsisSlot, energy) == 24 && offsetof(GpuTsisSlot, cdf) == 48);
 static_assert(offsetof(GpuPush, htFlags) == 36 && offsetof(GpuPush, htSampleLog) == 52);
+static_assert(sizeof(GpuHtPending) == 64 && offsetof(GpuHtPending, cellOrder) == 24 &&
+              offsetof(GpuHtPending, brdfDir) == 52);
 static_assert(sizeof(GpuHtSample) == 32 && offsetof(GpuHtSample, candidate) == 16 && offsetof(GpuHtSample, level) == 24);
 static_assert(sizeof(vec3) == 12 && alignof(vec3) == 4 && sizeof(vec2) == 8);
 

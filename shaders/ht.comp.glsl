@@ -19,8 +19,13 @@ void storeWalk(inout GpuPixelState st, HtWalk w) {
   st.htNode = w.node;
   st.htR = w.r;
   st.htLeafH = w.leafH;
+  st.htResume = w.resume ? 1u : 0u;
+  st.htResumeI = hrealToBits(w.resumeI);
 }
-HtWalk loadWalk(GpuPixelState st) { return HtWalk(st.htSeed, st.htFace, st.htLevel, st.htNode, st.htR, st.htLeafH); }
+HtWalk loadWalk(GpuPixelState st) {
+  return HtWalk(st.htSeed, st.htFace, st.htLevel, st.htNode, st.htR, st.htLeafH, st.htResume != 0u,
+                hrealFromBits(st.htResumeI));
+}
 
 void main() {
   PixelJob job;

@@ -312,15 +312,14 @@ hreal htEstimateBudget() {
 accvec3 gHtSum = accvec3(0.0);
 
 void htAccept(Shading sh, vec3 dir, uint pixel, float h, uint64_t candidate, uint level, bool averaged,
-              vec3 brdfDir) {
+              vec3 brdfDir, uint sampleIndex) {
   precise hreal inv = 1.0 / (ht.s * hreal(h));
   float weight = float(inv);
-  if (pc.htSampleLog != uvec2(0u) && gHtSamples < uint(HT_SAMPLE_LOG_SLOTS)) {
+  if (pc.htSampleLog != uvec2(0u) && sampleIndex < uint(HT_SAMPLE_LOG_SLOTS)) {
     uint slot = (gl_GlobalInvocationID.y * pc.tileWidth + gl_GlobalInvocationID.x) * uint(HT_SAMPLE_LOG_SLOTS);
-    HtSampleLog(pc.htSampleLog).s[slot + gHtSamples] =
+    HtSampleLog(pc.htSampleLog).s[slot + sampleIndex] =
         GpuHtSample(dir, h, uvec2(uint(candidate), uint(candidate >> 32)), level, weight);
   }
-  ++gHtSamples;
   vec3 radiance = envRadiance(pixel);
   // Biased samples take the BRDF at the smooth node's centre (HEALPix frame).
   vec3 woLocal = averaged ? ht.woLocal : sh.woLocal;
@@ -357,7 +356,37 @@ struct HtWalk {
   uint64_t node;
   uint64_t r;  // lowest candidate of the node
   float leafH;
+  // The pending list filled up inside the node's acceptance: the node is
+  // visited again, its acceptance going on from candidate resumeI.
+  bool resume;
+  hreal resumeI;
 };
+
+// The samples accepted and not yet shaded, in the order accepted.
+uint gHtPending = 0u;
+uint htPendingBase() {
+  return (gl_GlobalInvocationID.y * pc.tileWidth + gl_GlobalInvocationID.x) * uint(HT_PENDING_SLOTS);
+}
+
+// Jitters each pending sample in its cell (sample k of the sampler,
+// dimension 0), shades it and adds it to the sum, in the order accepted.
+void htShadePending(Shading sh, inout Sampler smp) {
+  HtPendingList list = HtPendingList(pc.htPending);
+  uint base = htPendingBase();
+  for (uint k = 0u; k < gHtPending; ++k) {
+    GpuHtPending p = list.p[base + k];
+    samplerStart(smp, p.sampleIndex);
+    vec2 j = samplerNext2D(smp);
+    hreal cells = hreal(p.cells);
+    precise hreal dx = (hrealFromBits(p.sx) + hreal(j.x)) / cells;
+    precise hreal dy = (hrealFromBits(p.sy) + hreal(j.y)) / cells;
+    hvec3 hp = pixToVecAt(p.cellOrder, p.cellPix, dx, dy);
+    bool averaged = p.averaged != 0u;
+    uint pixel = averaged ? vecToPix(ht.order, hp) : p.cellPix;
+    htAccept(sh, fromHealpixFrame(hp), pixel, p.h, p.candidate, p.level, averaged, p.brdfDir, p.sampleIndex);
+  }
+  gHtPending = 0u;
+}
 // The smallest bound on the path, per data level (the one value the hash cannot give back).
 float gHtPathMin[HT_MAX_ORDER + 1];
 
@@ -369,6 +398,8 @@ bool htBegin(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout ui
   w.node = 0ul;
   w.r = 0ul;
   w.leafH = 0.0;
+  w.resume = false;
+  w.resumeI = 0.0;
   gHtSum = accvec3(0.0);
   gHtSamples = 0u;
   if (scene.envHasLight == 0u) return false;
@@ -383,7 +414,10 @@ bool htBegin(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout ui
 }
 
 // At most `steps` steps of the walk; true once it has visited every face.
-// `taken`: the steps it took.
+// `taken`: the steps it took. The walk's loop bounds, descends and records
+// accepted samples only; whenever HT_PENDING_SLOTS are waiting, and at the
+// end, a second loop shades them: the traversal, where the lanes of a SIMD
+// group diverge, stays small.
 bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint taken) {
   const bool biased = (ht.flags & HT_FLAG_BIASED) != 0u;
   const bool visibility = (ht.flags & HT_FLAG_VISIBILITY) != 0u;
@@ -395,8 +429,13 @@ bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint
   uint64_t r = w.r;
   float leafH = w.leafH;
   bool finished = face == 12u;
+  bool resume = w.resume;
+  hreal resumeI = w.resumeI;
+  HtPendingList pending = HtPendingList(pc.htPending);
+  const uint pendingBase = htPendingBase();
   uint step = 0u;
-  for (; step < steps && !finished; ++step) {
+  while (step < steps && !finished) {
+  for (; step < steps && !finished && gHtPending < uint(HT_PENDING_SLOTS); ++step) {
     bool descend = false;
     bool virtualCell = level > ht.order;
     // Candidates r, r + step, ... below acceptT are accepted in the cell
@@ -407,7 +446,7 @@ bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint
     float sampleH = 0.0;
     vec3 brdfDir = vec3(0.0);
     if (!virtualCell) {
-      ++gHtNodes;
+      if (!resume) ++gHtNodes;
       HtNode n = htNode(level, uint(node), biased || level == ht.order);
       float pm = level == 0u ? n.bound : min(gHtPathMin[level - 1u], n.bound);
       gHtPathMin[level] = pm;
@@ -477,19 +516,27 @@ bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint
       }
     }
     if (accept) {
-      precise hreal i = hreal(r);
+      precise hreal i = resume ? resumeI : hreal(r);
+      resume = false;
       for (;;) {
         precise hreal iu = i + ht.u;
         if (!(iu < acceptT)) break;
-        // Sample k's point inside its cell: sample index k, dimension 0.
-        samplerStart(smp, gHtSamples);
-        vec2 j = samplerNext2D(smp);
-        precise hreal dx = (sx + hreal(j.x)) / cells;
-        precise hreal dy = (sy + hreal(j.y)) / cells;
-        hvec3 hp = pixToVecAt(cellOrder, cellPix, dx, dy);
-        uint pixel = averaged ? vecToPix(ht.order, hp) : cellPix;
-        htAccept(sh, fromHealpixFrame(hp), pixel, sampleH, uint64_t(i), level, averaged, brdfDir);
+        if (gHtPending == uint(HT_PENDING_SLOTS)) {
+          resume = true;
+          resumeI = i;
+          break;
+        }
+        // Sample k's point inside its cell: sample index k, dimension 0 (htShadePending).
+        pending.p[pendingBase + gHtPending] =
+            GpuHtPending(hrealToBits(sx), hrealToBits(sy), uint64_t(i), cellOrder, cellPix, gHtSamples, level,
+                         float(cells), sampleH, averaged ? 1u : 0u, brdfDir);
+        ++gHtPending;
+        ++gHtSamples;
         i = i + acceptStep;
+      }
+      if (resume) {
+        ++step;
+        break;  // this node again once the pending samples are shaded
       }
     }
     if (descend) {
@@ -520,6 +567,10 @@ bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint
     }
     finished = face == 12u;
   }
+  htShadePending(sh, smp);
+  }
+  w.resume = resume;
+  w.resumeI = resumeI;
   w.face = face;
   w.level = level;
   w.node = node;

@@ -17,29 +17,6 @@ layout(local_size_x = HT_WORKGROUP_SIZE, local_size_y = HT_WORKGROUP_SIZE) in;
 // method gets a pipeline that holds its own code only.
 layout(constant_id = HT_SPEC_METHOD) const uint kSpecializedMethod = HT_METHOD_ANY;
 
-#if HT_FP64
-accvec3 sumFromBits(uint64_t b[3]) {
-  return accvec3(uint64BitsToDouble(b[0]), uint64BitsToDouble(b[1]), uint64BitsToDouble(b[2]));
-}
-void sumToBits(accvec3 v, out uint64_t b[3]) {
-  b[0] = doubleBitsToUint64(v.x);
-  b[1] = doubleBitsToUint64(v.y);
-  b[2] = doubleBitsToUint64(v.z);
-}
-hreal hrealFromBits(uint64_t b) { return uint64BitsToDouble(b); }
-uint64_t hrealToBits(hreal v) { return doubleBitsToUint64(v); }
-#else
-accvec3 sumFromBits(uint64_t b[3]) {
-  return accvec3(uintBitsToFloat(uint(b[0])), uintBitsToFloat(uint(b[1])), uintBitsToFloat(uint(b[2])));
-}
-void sumToBits(accvec3 v, out uint64_t b[3]) {
-  b[0] = uint64_t(floatBitsToUint(v.x));
-  b[1] = uint64_t(floatBitsToUint(v.y));
-  b[2] = uint64_t(floatBitsToUint(v.z));
-}
-hreal hrealFromBits(uint64_t b) { return uintBitsToFloat(uint(b)); }
-uint64_t hrealToBits(hreal v) { return uint64_t(floatBitsToUint(v)); }
-#endif
 
 struct PixelJob {
   uint slot;       // index in the tile's buffers
@@ -96,6 +73,9 @@ bool pixelStart(out PixelJob job) {
     job.st.done = 0u;
     job.st.samplerSeed = rngNextUint(job.st.rng);  // estimateDirect's first draw
     job.st.pad = 0u;
+    job.st.htResume = 0u;
+    job.st.pad2 = 0u;
+    job.st.htResumeI = 0ul;
     sumToBits(accvec3(0.0), job.st.sum);
     for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) job.st.htPathMin[l] = 0.0;
   } else {

@@ -17,6 +17,31 @@
 #define accvec3 vec3
 #endif
 
+// Sums and reals kept between batches as their bits (GpuPixelState).
+#if HT_FP64
+accvec3 sumFromBits(uint64_t b[3]) {
+  return accvec3(uint64BitsToDouble(b[0]), uint64BitsToDouble(b[1]), uint64BitsToDouble(b[2]));
+}
+void sumToBits(accvec3 v, out uint64_t b[3]) {
+  b[0] = doubleBitsToUint64(v.x);
+  b[1] = doubleBitsToUint64(v.y);
+  b[2] = doubleBitsToUint64(v.z);
+}
+hreal hrealFromBits(uint64_t b) { return uint64BitsToDouble(b); }
+uint64_t hrealToBits(hreal v) { return doubleBitsToUint64(v); }
+#else
+accvec3 sumFromBits(uint64_t b[3]) {
+  return accvec3(uintBitsToFloat(uint(b[0])), uintBitsToFloat(uint(b[1])), uintBitsToFloat(uint(b[2])));
+}
+void sumToBits(accvec3 v, out uint64_t b[3]) {
+  b[0] = uint64_t(floatBitsToUint(v.x));
+  b[1] = uint64_t(floatBitsToUint(v.y));
+  b[2] = uint64_t(floatBitsToUint(v.z));
+}
+hreal hrealFromBits(uint64_t b) { return uintBitsToFloat(uint(b)); }
+uint64_t hrealToBits(hreal v) { return uint64_t(floatBitsToUint(v)); }
+#endif
+
 struct Shading {
   Frame frame;
   vec3 woLocal;
