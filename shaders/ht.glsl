@@ -8,6 +8,9 @@
 // from the stateless hash, going up takes r mod stride. The one value per
 // level the hash cannot give back is the smallest bound on the path
 // (leafValue and the biased stop clamp to it), kept for data levels only.
+// Accepted samples wait in a short list (GpuHtPending) and are jittered and
+// shaded by a loop of their own, in the order accepted: the walk's loop, in
+// which the lanes of a SIMD group diverge, carries no shading.
 //
 // Decisions compare the same doubles as the CPU (HT_FP64). They can differ
 // where a bound goes through pow, cos, asin or acos (an ulp or two off
