@@ -60,15 +60,15 @@ uint baselineSamples(Shading sh, uint method, uint begin, uint end, inout Sample
 void main() {
   PixelJob job;
   if (!pixelStart(job)) return;
-  if (job.shade && job.st.done == 0u) {
-    Sampler smp = pixelSampler(job.st);
-    accvec3 sum = sumFromBits(job.st.sum);
-    uint end = min(pc.spp, job.st.next + pc.batchLimit);
-    uint taken = baselineSamples(job.sh, job.method, job.st.next, end, smp, sum, job.st.directions);
-    job.cut = taken != end - job.st.next;
-    sumToBits(sum, job.st.sum);
-    job.st.next = end;
-    job.st.done = end >= pc.spp ? 1u : 0u;
+  if (job.shade && gPixel.done == 0u) {
+    Sampler smp = pixelSampler();
+    accvec3 sum = sumFromBits(gPixel.sum);
+    uint end = min(pc.spp, gPixel.next + pc.batchLimit);
+    uint taken = baselineSamples(job.sh, pixelMethod(), gPixel.next, end, smp, sum, gPixel.directions);
+    job.cut = taken != end - gPixel.next;
+    sumToBits(sum, gPixel.sum);
+    gPixel.next = end;
+    gPixel.done = end >= pc.spp ? 1u : 0u;
   }
-  pixelEnd(job, pixelMean(job.st));
+  pixelEnd(job, pixelMean());
 }

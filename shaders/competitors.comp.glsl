@@ -15,31 +15,31 @@ bool isWisMethod(uint method) { return method == HT_METHOD_WIS || method == HT_M
 // Whether there is anything to sample; tsis and wis build their per-point
 // tables here, again in every batch.
 bool prepare(PixelJob job) {
-  if (job.method == HT_METHOD_TSIS) return tsisPrepare(job.sh, job.normal, job.wo);
-  if (isWisMethod(job.method)) return wisPrepare(job.sh, job.normal, job.wo);
+  if (pixelMethod() == HT_METHOD_TSIS) return tsisPrepare(job.sh, job.normal, job.wo);
+  if (isWisMethod(pixelMethod())) return wisPrepare(job.sh, job.normal, job.wo);
   return scene.envHasLight != 0u;
 }
 
 void main() {
   PixelJob job;
   if (!pixelStart(job)) return;
-  if (job.shade && job.st.done == 0u && !prepare(job)) job.st.done = 1u;
-  if (job.shade && job.st.done == 0u) {
-    Sampler smp = pixelSampler(job.st);
-    accvec3 sum = sumFromBits(job.st.sum);
-    uint begin = job.st.next;
+  if (job.shade && gPixel.done == 0u && !prepare(job)) gPixel.done = 1u;
+  if (job.shade && gPixel.done == 0u) {
+    Sampler smp = pixelSampler();
+    accvec3 sum = sumFromBits(gPixel.sum);
+    uint begin = gPixel.next;
     uint end = min(pc.spp, begin + pc.batchLimit);
     uint taken;
-    if (job.method == HT_METHOD_RIS)
-      taken = risSamples(job.sh, begin, end, pc.risCandidates, smp, sum, job.st.directions);
-    else if (job.method == HT_METHOD_TSIS)
-      taken = tsisSamples(job.sh, begin, end, smp, sum, job.st.directions);
+    if (pixelMethod() == HT_METHOD_RIS)
+      taken = risSamples(job.sh, begin, end, pc.risCandidates, smp, sum, gPixel.directions);
+    else if (pixelMethod() == HT_METHOD_TSIS)
+      taken = tsisSamples(job.sh, begin, end, smp, sum, gPixel.directions);
     else
-      taken = wisSamples(job.sh, begin, end, smp, job.method == HT_METHOD_WIS_BIASED, sum, job.st.directions);
+      taken = wisSamples(job.sh, begin, end, smp, pixelMethod() == HT_METHOD_WIS_BIASED, sum, gPixel.directions);
     job.cut = taken != end - begin;
-    sumToBits(sum, job.st.sum);
-    job.st.next = end;
-    job.st.done = end >= pc.spp ? 1u : 0u;
+    sumToBits(sum, gPixel.sum);
+    gPixel.next = end;
+    gPixel.done = end >= pc.spp ? 1u : 0u;
   }
-  pixelEnd(job, pixelMean(job.st));
+  pixelEnd(job, pixelMean());
 }

@@ -12,19 +12,19 @@
 #include "pixel.glsl"
 #include "ht.glsl"
 
-void storeWalk(inout GpuPixelState st, HtWalk w) {
-  st.htSeed = w.seed;
-  st.htFace = w.face;
-  st.htLevel = w.level;
-  st.htNode = w.node;
-  st.htR = w.r;
-  st.htLeafH = w.leafH;
-  st.htResume = w.resume ? 1u : 0u;
-  st.htResumeI = hrealToBits(w.resumeI);
+void storeWalk(HtWalk w) {
+  gPixel.htSeed = w.seed;
+  gPixel.htFace = w.face;
+  gPixel.htLevel = w.level;
+  gPixel.htNode = w.node;
+  gPixel.htR = w.r;
+  gPixel.htLeafH = w.leafH;
+  gPixel.htResume = w.resume ? 1u : 0u;
+  gPixel.htResumeI = hrealToBits(w.resumeI);
 }
-HtWalk loadWalk(GpuPixelState st) {
-  return HtWalk(st.htSeed, st.htFace, st.htLevel, st.htNode, st.htR, st.htLeafH, st.htResume != 0u,
-                hrealFromBits(st.htResumeI));
+HtWalk loadWalk() {
+  return HtWalk(gPixel.htSeed, gPixel.htFace, gPixel.htLevel, gPixel.htNode, gPixel.htR, gPixel.htLeafH,
+                gPixel.htResume != 0u, hrealFromBits(gPixel.htResumeI));
 }
 
 void main() {
@@ -32,36 +32,36 @@ void main() {
   if (!pixelStart(job)) return;
   if (job.shade) {
     gHtMaterial = job.materialIndex;
-    gHtNodes = job.st.htNodes;
+    gHtNodes = gPixel.htNodes;
     HtWalk w;
     if (job.fresh) {
-      bool work = htBegin(job.sh, job.position, job.normal, job.wo, pc.spp, job.st.rng, w);
-      job.st.done = work ? 0u : 1u;
-      storeWalk(job.st, w);
-      job.st.htS = hrealToBits(ht.s);
-      job.st.htU = hrealToBits(ht.u);
+      bool work = htBegin(job.sh, job.position, job.normal, job.wo, pc.spp, gPixel.rng, w);
+      gPixel.done = work ? 0u : 1u;
+      storeWalk(w);
+      gPixel.htS = hrealToBits(ht.s);
+      gPixel.htU = hrealToBits(ht.u);
     } else {
       htInit(job.position, job.normal, job.wo, job.sh.material);
-      ht.s = hrealFromBits(job.st.htS);
-      ht.u = hrealFromBits(job.st.htU);
+      ht.s = hrealFromBits(gPixel.htS);
+      ht.u = hrealFromBits(gPixel.htU);
     }
-    if (job.st.done == 0u) {
-      for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) gHtPathMin[l] = job.st.htPathMin[l];
-      w = loadWalk(job.st);
-      gHtSum = sumFromBits(job.st.sum);
-      gHtSamples = job.st.directions;
-      Sampler smp = pixelSampler(job.st);
+    if (gPixel.done == 0u) {
+      for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) gHtPathMin[l] = gPixel.htPathMin[l];
+      w = loadWalk();
+      gHtSum = sumFromBits(gPixel.sum);
+      gHtSamples = gPixel.directions;
+      Sampler smp = pixelSampler();
       uint taken;
       bool finished = htSteps(job.sh, w, pc.batchLimit, smp, taken);
       job.cut = !finished && taken != pc.batchLimit;
-      sumToBits(gHtSum, job.st.sum);
-      job.st.directions = gHtSamples;
-      storeWalk(job.st, w);
-      for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) job.st.htPathMin[l] = gHtPathMin[l];
-      job.st.done = finished ? 1u : 0u;
+      sumToBits(gHtSum, gPixel.sum);
+      gPixel.directions = gHtSamples;
+      storeWalk(w);
+      for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) gPixel.htPathMin[l] = gHtPathMin[l];
+      gPixel.done = finished ? 1u : 0u;
     }
-    job.st.htNodes = gHtNodes;
+    gPixel.htNodes = gHtNodes;
   }
   // HT's estimate is the sum of its weighted samples.
-  pixelEnd(job, vec3(sumFromBits(job.st.sum)));
+  pixelEnd(job, vec3(sumFromBits(gPixel.sum)));
 }

@@ -2,7 +2,7 @@
 // the current tile, its estimate spread over batches (one dispatch each) so
 // that no dispatch runs long. A shader's main() is
 //   if (!pixelStart(job)) return;            // outside the tile
-//   if (job.shade) { ...begin on job.fresh, continue while !job.st.done... }
+//   if (job.shade) { ...begin on job.fresh, continue while !gPixel.done... }
 //   pixelEnd(job, estimate);
 // and the state between batches is GpuPixelState (shaders/common.h).
 #ifndef HT_PIXEL_GLSL
@@ -16,18 +16,23 @@ layout(local_size_x = HT_WORKGROUP_SIZE, local_size_y = HT_WORKGROUP_SIZE) in;
 // push constant's): lavapipe compiles every branch of a shader, so each
 // method gets a pipeline that holds its own code only.
 layout(constant_id = HT_SPEC_METHOD) const uint kSpecializedMethod = HT_METHOD_ANY;
+// The method, read where it is used (the driver folds the specialization
+// constant there, and drops the other methods' code).
+uint pixelMethod() { return kSpecializedMethod == HT_METHOD_ANY ? pc.method : kSpecializedMethod; }
 
+
+// The pixel's state between batches (GpuPixelState), a global of its own:
+// lavapipe copies a struct holding arrays at every call that takes it.
+GpuPixelState gPixel;
 
 struct PixelJob {
   uint slot;       // index in the tile's buffers
-  uint method;     // HT_METHOD_*
   bool shade;      // the camera ray hit the scene
   bool fresh;      // first batch: the state starts here
   bool cut;        // a loop stopped before it should have
   vec3 position, normal, wo;
   uint materialIndex;
   Shading sh;
-  GpuPixelState st;
   vec3 background;  // radiance of a ray that misses the scene
 };
 
@@ -40,7 +45,6 @@ bool pixelStart(out PixelJob job) {
   uint x = pc.tileX + local.x;
   uint y = pc.tileY + local.y;
   job.slot = local.y * pc.tileWidth + local.x;
-  job.method = kSpecializedMethod == HT_METHOD_ANY ? pc.method : kSpecializedMethod;
   job.cut = false;
   job.background = vec3(0.0);
 
@@ -52,8 +56,8 @@ bool pixelStart(out PixelJob job) {
   job.fresh = pc.batch == 0u;
   if (!job.shade) {
     job.background = envEval(ray.dir);
-    job.st.done = 1u;
-    sumToBits(accvec3(0.0), job.st.sum);
+    gPixel.done = 1u;
+    sumToBits(accvec3(0.0), gPixel.sum);
     return true;
   }
   job.position = hit.position;
@@ -65,31 +69,31 @@ bool pixelStart(out PixelJob job) {
   job.sh.origin = offsetRayOrigin(hit.position, hit.normal);
   job.sh.material = materials[hit.material];
   if (job.fresh) {
-    job.st.rng = rngInit(pc.seed, y * pc.width + x);
-    job.st.next = 0u;
-    job.st.directions = 0u;
-    job.st.shadowRays = 0u;
-    job.st.htNodes = 0u;
-    job.st.done = 0u;
-    job.st.samplerSeed = rngNextUint(job.st.rng);  // estimateDirect's first draw
-    job.st.pad = 0u;
-    job.st.htResume = 0u;
-    job.st.pad2 = 0u;
-    job.st.htResumeI = 0ul;
-    sumToBits(accvec3(0.0), job.st.sum);
-    for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) job.st.htPathMin[l] = 0.0;
+    gPixel.rng = rngInit(pc.seed, y * pc.width + x);
+    gPixel.next = 0u;
+    gPixel.directions = 0u;
+    gPixel.shadowRays = 0u;
+    gPixel.htNodes = 0u;
+    gPixel.done = 0u;
+    gPixel.samplerSeed = rngNextUint(gPixel.rng);  // estimateDirect's first draw
+    gPixel.pad = 0u;
+    gPixel.htResume = 0u;
+    gPixel.pad2 = 0u;
+    gPixel.htResumeI = 0ul;
+    sumToBits(accvec3(0.0), gPixel.sum);
+    for (uint l = 0u; l <= uint(HT_MAX_ORDER); ++l) gPixel.htPathMin[l] = 0.0;
   } else {
-    job.st = pc.pixelState.s[job.slot];
+    gPixel = pc.pixelState.s[job.slot];
   }
-  gShadowRays = job.st.shadowRays;
+  gShadowRays = gPixel.shadowRays;
   return true;
 }
 
-Sampler pixelSampler(GpuPixelState st) { return samplerInit(pc.samplerKind, st.samplerSeed); }
+Sampler pixelSampler() { return samplerInit(pc.samplerKind, gPixel.samplerSeed); }
 
 // The mean of a finished pixel's spp samples.
-vec3 pixelMean(GpuPixelState st) {
-  precise accvec3 mean = sumFromBits(st.sum) / accvec3(max(pc.spp, 1u));
+vec3 pixelMean() {
+  precise accvec3 mean = sumFromBits(gPixel.sum) / accvec3(max(pc.spp, 1u));
   return vec3(mean);
 }
 
@@ -114,15 +118,14 @@ void pixelEnd(PixelJob job, vec3 estimate) {
   result.htNodes = 0u;
   bool done = true;
   if (job.shade) {
-    GpuPixelState st = job.st;
-    st.shadowRays = gShadowRays;
-    pc.pixelState.s[job.slot] = st;
-    done = st.done != 0u;
+    gPixel.shadowRays = gShadowRays;
+    pc.pixelState.s[job.slot] = gPixel;
+    done = gPixel.done != 0u;
     result.radiance = done ? estimate : vec3(0.0);
     result.shaded = 1u;
-    result.directions = st.directions;
-    result.shadowRays = st.shadowRays;
-    result.htNodes = st.htNodes;
+    result.directions = gPixel.directions;
+    result.shadowRays = gPixel.shadowRays;
+    result.htNodes = gPixel.htNodes;
   }
   bool cut = loopsWereCut() || job.cut;
   result.status = (done ? HT_PIXEL_DONE : 0u) | (cut ? HT_PIXEL_LOOPS_CUT : 0u);
