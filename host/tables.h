@@ -2,7 +2,7 @@
 // bound tables, wis's node centres, tsis's summed-area table). A render
 // builds the ones its method needs before it starts (prepareTables in
 // integrator.h), so that its time leaves them out, owns them, and passes
-// them down; nothing is cached behind the caller's back.
+// them down: no process-wide caches.
 #pragma once
 
 #include <memory>
