@@ -520,8 +520,11 @@ class GpuOtherSeedsFp32 : public ::testing::TestWithParam<Method> {};
 TEST_P(GpuOtherSeedsFp32, AgreesWithCpuStatistically) { expectAgreesWithCpuStatistically(GetParam(), 64, true); }
 INSTANTIATE_TEST_SUITE_P(EnvironmentDescent, GpuOtherSeedsFp32, ::testing::Values(Method::Env, Method::Mis, Method::Ris),
                          [](const auto& info) { return std::string(methodName(info.param)); });
-// HT in fp32 compares its thresholds in float: other samples than the CPU's, the same estimator.
-INSTANTIATE_TEST_SUITE_P(HtThresholds, GpuOtherSeedsFp32,
+// HT in fp32 compares its thresholds in float: other samples than the CPU's,
+// the same estimator (slow tier).
+class GpuOtherSeedsFp32Slow : public ::testing::TestWithParam<Method> {};
+TEST_P(GpuOtherSeedsFp32Slow, AgreesWithCpuStatistically) { expectAgreesWithCpuStatistically(GetParam(), 64, true); }
+INSTANTIATE_TEST_SUITE_P(HtThresholds, GpuOtherSeedsFp32Slow,
                          ::testing::Values(Method::Ht, Method::HtVis, Method::HtVisBiased),
                          [](const auto& info) {
                            std::string name = methodName(info.param);
