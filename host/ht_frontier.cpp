@@ -19,8 +19,8 @@ namespace {
 // node i of the tree layout and the BRDF x cos at its centre, and returns
 // false where the integrand is surely 0.
 template <class Factor>
-void refine(const Environment& env, const std::vector<glm::vec3>& centres, int refinements, float coarseRatio,
-            Factor&& factor, FrontierTable& table) {
+void refine(const Environment& env, const std::vector<glm::vec3>& centres, const std::vector<uint8_t>* colourBins,
+            int refinements, float coarseRatio, Factor&& factor, FrontierTable& table) {
   struct Candidate {
     FrontierNode node;
     bool split;
@@ -33,13 +33,15 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
   table.splits = 0;
   table.coarseShare = 0.0;
   const int order = env.order;
-  auto push = [&](int level, uint64_t node) {
+  // `visibility`: the parent's class; the children of a free node are free.
+  auto push = [&](int level, uint64_t node, int visibility) {
     const uint64_t i = MaxAvgTree::levelOffset(level) + node;
     const float avg = env.tree.avgv[i];
     float bound, c, centre;
-    if (!(avg > 0.0f) || !factor(level, i, bound, c, centre)) return;
+    if (!(avg > 0.0f) || !factor(level, i, bound, c, centre, visibility)) return;
     const double energy = double(avg) * healpix::pixelSolidAngle(level);
-    const FrontierNode nd{level, node, node << (2 * (order - level)), centres[i], energy * double(c), bound, centre};
+    const FrontierNode nd{level, node, node << (2 * (order - level)), centres[i], energy * double(c), bound, centre,
+                          visibility};
     candidates.push_back({nd, false});
     // The variance a node adds grows with the spread of the factor over it.
     const double spread = std::max(0.0, double(bound) - double(c));
@@ -49,7 +51,7 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
       std::push_heap(heap.begin(), heap.end());
     }
   };
-  for (int f = 0; f < 12; ++f) push(0, uint64_t(f));
+  for (int f = 0; f < 12; ++f) push(0, uint64_t(f), 2);
   for (; table.splits < refinements && !heap.empty(); ++table.splits) {
     std::pop_heap(heap.begin(), heap.end());
     const uint32_t top = heap.back().second;
@@ -57,21 +59,34 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
     candidates[top].split = true;
     const int level = candidates[top].node.level + 1;
     const uint64_t first = 4 * candidates[top].node.node;
-    for (uint64_t j = 0; j < 4; ++j) push(level, first + j);
+    for (uint64_t j = 0; j < 4; ++j) push(level, first + j, candidates[top].node.visibility);
   }
   for (const Candidate& c : candidates)
     if (!c.split) table.nodes.push_back(c.node);
   std::sort(table.nodes.begin(), table.nodes.end(),
             [](const FrontierNode& a, const FrontierNode& b) { return a.firstLeaf < b.firstLeaf; });
+  // The CDF's order: by colour bin and face, along the nested index inside
+  // each (a counting sort: the nodes are in nested order).
+  auto segment = [&](const FrontierNode& nd) {
+    const int bin = colourBins ? (*colourBins)[MaxAvgTree::levelOffset(nd.level) + nd.node] : 0;
+    return bin * 12 + int(nd.node >> (2 * nd.level));
+  };
+  table.faceStart.fill(0);
+  for (const FrontierNode& nd : table.nodes) ++table.faceStart[size_t(nd.node >> (2 * nd.level)) + 1];
+  for (size_t f = 0; f < 12; ++f) table.faceStart[f + 1] += table.faceStart[f];
+  table.segStart.fill(0);
+  for (const FrontierNode& nd : table.nodes) ++table.segStart[size_t(segment(nd)) + 1];
+  for (int i = 0; i < FrontierTable::kSegments; ++i) table.segStart[size_t(i) + 1] += table.segStart[size_t(i)];
+  std::array<uint32_t, FrontierTable::kSegments> next;
+  std::copy(table.segStart.begin(), table.segStart.end() - 1, next.begin());
+  table.cdfOrder.resize(table.nodes.size());
+  for (uint32_t k = 0; k < uint32_t(table.nodes.size()); ++k)
+    table.cdfOrder[next[size_t(segment(table.nodes[k]))]++] = k;
   double total = 0.0, coarse = 0.0;
   table.cum.resize(table.nodes.size() + 1);
-  table.faceStart.fill(uint32_t(table.nodes.size()));
-  for (size_t k = table.nodes.size(); k-- > 0;)
-    table.faceStart[size_t(table.nodes[k].node >> (2 * table.nodes[k].level))] = uint32_t(k);
-  for (int f = 11; f >= 0; --f) table.faceStart[size_t(f)] = std::min(table.faceStart[size_t(f)], table.faceStart[size_t(f + 1)]);
-  for (size_t k = 0; k < table.nodes.size(); ++k) {
-    const FrontierNode& nd = table.nodes[k];
-    table.cum[k] = total;
+  for (size_t i = 0; i < table.cdfOrder.size(); ++i) {
+    const FrontierNode& nd = table.nodes[table.cdfOrder[i]];
+    table.cum[i] = total;
     total += nd.mass;
     if (nd.brdfBound > coarseRatio * nd.brdfCentre) coarse += nd.mass;
   }
@@ -79,37 +94,37 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, int r
   table.coarseShare = total > 0.0 ? coarse / total : 0.0;
 }
 
-// A spherical cap of blocked directions seen from a shading point (HEALPix
-// frame), by the cosine and sine of its half-angle: the caps of HT's
-// visibility factor, shrunk by the same milliradian, without per-level tables.
-struct LightCap {
-  glm::vec3 axis;
-  float cosA, sinA;
-};
-
-// HT's caps (visibilityCaps) with their half-angle A by its cosine and sine.
-void lightCaps(const Scene& scene, const ShadingPoint& sp, std::vector<LightCap>& caps) {
+// HT's caps (visibilityCaps), each with its per-level thresholds. With A
+// the cap's half-angle and R a radius bounding a level's nodes, a node lies
+// inside when angle(centre, axis) <= A - R (A > R), outside when >= A + R,
+// in cosines by the angle-addition formulas; the caps' margin covers their
+// rounding.
+void lightCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& g, std::vector<LightCap>& caps) {
   const float cm = std::cos(kCapMargin), sm = std::sin(kCapMargin);
   caps.clear();
   for (const Occluder& o : occluders(scene, sp)) {
     const float s0 = o.sinHalfAngle, c0 = std::sqrt(1.0f - s0 * s0);
     const float sinA = s0 * cm - c0 * sm;  // sin(asin(s0) - margin)
-    if (sinA > 0.0f) caps.push_back({o.axis, c0 * cm + s0 * sm, sinA});
+    const float cosA = c0 * cm + s0 * sm;
+    if (!(sinA > 0.0f)) continue;
+    LightCap c{o.axis, {}, {}};
+    for (size_t l = 0; l < c.cosInside.size(); ++l) {
+      const float cR = g.levelCosRadius[l], sR = g.levelSinRadius[l];
+      c.cosInside[l] = sinA * cR - cosA * sR > 0.0f ? cosA * cR + sinA * sR : 2.0f;
+      c.cosOutside[l] = cosA * cR - sinA * sR;
+    }
+    caps.push_back(c);
   }
 }
 
 // 0: a node of `level` at `centre` lies inside a cap (blocked), 1: outside
-// every cap, 2: partly covered. Inside: angle(centre, axis) <= A - R with
-// A > R; outside: >= A + R (A the cap's half-angle, R a radius bounding the
-// level's nodes), in cosines by the angle-addition formulas; the caps'
-// margin covers their rounding.
-int visibilityClass(const std::vector<LightCap>& caps, const HtGeometry& g, const glm::vec3& centre, int level) {
-  const float cR = g.levelCosRadius[size_t(level)], sR = g.levelSinRadius[size_t(level)];
+// every cap, 2: partly covered.
+int visibilityClass(const std::vector<LightCap>& caps, const glm::vec3& centre, int level) {
   bool partial = false;
   for (const LightCap& c : caps) {
     const float d = glm::dot(centre, c.axis);
-    if (c.sinA * cR - c.cosA * sR > 0.0f && d >= c.cosA * cR + c.sinA * sR) return 0;
-    partial |= d > c.cosA * cR - c.sinA * sR;
+    if (d >= c.cosInside[size_t(level)]) return 0;
+    partial |= d > c.cosOutside[size_t(level)];
   }
   return partial ? 2 : 1;
 }
@@ -119,9 +134,10 @@ struct SharedKey {
   glm::vec3 normal;
   int refinements;
   float floor, coarseRatio;
+  bool colourOrder;
   bool operator==(const SharedKey& o) const {
     return tree == o.tree && normal == o.normal && refinements == o.refinements && floor == o.floor &&
-           coarseRatio == o.coarseRatio;
+           coarseRatio == o.coarseRatio && colourOrder == o.colourOrder;
   }
 };
 struct SharedKeyHash {
@@ -135,10 +151,12 @@ struct SharedKeyHash {
 };
 
 // The Lambert table of a flat surface's normal, per thread.
-const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOptions& options) {
+const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOptions& options,
+                                       const std::vector<uint8_t>& colourBins) {
   thread_local std::unordered_map<SharedKey, std::unique_ptr<FrontierTable>, SharedKeyHash> cache;
   thread_local uint64_t cachedTree = 0;
-  const SharedKey key{point.env.tree.id, point.n, options.sharedRefinements, options.brdfFloor, options.coarseRatio};
+  const SharedKey key{point.env.tree.id, point.n, options.sharedRefinements, options.brdfFloor, options.coarseRatio,
+                      options.colourOrder};
   // Tables of an earlier environment are never used again.
   if (cachedTree != key.tree || cache.size() >= kFrontierSharedTables) cache.clear();
   cachedTree = key.tree;
@@ -147,7 +165,8 @@ const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOpti
   entry = std::make_unique<FrontierTable>();
   const HtGeometry& g = point.geometry;
   // Albedo and 1/pi scale every node alike: the shape is cos+ alone.
-  auto factor = [&](int, uint64_t i, float& bound, float& c, float& centre) {
+  auto factor = [&](int, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
+    visibility = 1;
     const glm::vec3& axis = g.centers[i];
     bound = cosClosest(axis, point.n, g.cosSinRadius[i].x, g.cosSinRadius[i].y);
     if (!(bound > 0.0f)) return false;
@@ -155,7 +174,8 @@ const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOpti
     c = std::max(centre, options.brdfFloor * bound);
     return true;
   };
-  refine(point.env, g.centers, options.sharedRefinements, options.coarseRatio, factor, *entry);
+  refine(point.env, g.centers, options.colourOrder ? &colourBins : nullptr, options.sharedRefinements,
+         options.coarseRatio, factor, *entry);
   return *entry;
 }
 
@@ -165,82 +185,120 @@ int frontierRefinements(const FrontierOptions& options, int n) {
   return options.refinements >= 0 ? options.refinements : std::min(16 + std::max(n, 0), 256);
 }
 
-void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const FrontierOptions& options, int n) {
+std::vector<uint8_t> frontierColourBins(const Environment& env) {
+  const int order = env.order;
+  std::vector<glm::vec3> sum(size_t(MaxAvgTree::levelOffset(order + 1)));
+  std::copy(env.radiance.begin(), env.radiance.end(), sum.begin() + std::ptrdiff_t(MaxAvgTree::levelOffset(order)));
+  for (int level = order - 1; level >= 0; --level)
+    for (uint64_t i = 0; i < (uint64_t(12) << (2 * level)); ++i) {
+      const uint64_t c = MaxAvgTree::levelOffset(level + 1) + 4 * i;
+      sum[MaxAvgTree::levelOffset(level) + i] = sum[c] + sum[c + 1] + sum[c + 2] + sum[c + 3];
+    }
+  std::vector<uint8_t> bins(sum.size());
+  for (size_t i = 0; i < sum.size(); ++i) {
+    const float all = sum[i].r + sum[i].g + sum[i].b;
+    const float key = all > 0.0f ? (sum[i].b - sum[i].r) / all : 0.0f;
+    bins[i] = uint8_t(std::clamp(int((key + 1.0f) * 0.5f * kFrontierColourBins), 0, kFrontierColourBins - 1));
+  }
+  return bins;
+}
+
+void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const FrontierOptions& options, int n,
+                     const std::vector<uint8_t>& colourBins) {
   point_ = &point;
   order_ = point.env.order;
+  productLevel_ = options.productLevel;
+  brdfFloor_ = options.brdfFloor;
+  partialVisibility_ = options.partialVisibility;
+  lambert_ = point.material.type == MaterialType::Lambert && !point.table;
   thread_local std::vector<LightCap> allCaps;
   allCaps.clear();
-  if (options.visibility) lightCaps(point.scene, sp, allCaps);
-  const bool lambert = point.material.type == MaterialType::Lambert && !point.table;
-  if (sp.flat && lambert && options.sharedRefinements >= 0 && point.woLocal.z > 0.0f) {
-    table_ = &sharedLambertTable(point, options);
+  if (options.visibility) lightCaps(point.scene, sp, point.geometry, allCaps);
+  touched_ = 0;
+  if (sp.flat && lambert_ && options.sharedRefinements >= 0 && point.woLocal.z > 0.0f) {
+    table_ = &sharedLambertTable(point, options, colourBins);
     // The point's own caps, each with the faces it can reach. The cap of
     // the surface's own plane is left out: the table has no mass below it
     // but for nodes the horizon cuts, where cos+ is small.
     thread_local std::array<std::vector<LightCap>, 12> faceCaps;
     const HtGeometry& g = point.geometry;
-    touched_ = 0;
     for (std::vector<LightCap>& caps : faceCaps) caps.clear();
+    caps_.clear();
     for (const LightCap& c : allCaps) {
       if (glm::dot(c.axis, point.n) < -0.9999f) continue;
-      const float cosOutside = c.cosA * g.levelCosRadius[0] - c.sinA * g.levelSinRadius[0];
+      caps_.push_back(c);
       for (uint32_t f = 0; f < 12; ++f)
-        if (glm::dot(g.centers[f], c.axis) > cosOutside) {
+        if (glm::dot(g.centers[f], c.axis) > c.cosOutside[0]) {
           faceCaps[f].push_back(c);
           touched_ |= 1u << f;
         }
     }
     const FrontierTable& t = *table_;
-    mass_.resize(t.nodes.size());
-    cum_.resize(t.nodes.size());
+    if (touched_) {
+      mass_.resize(t.nodes.size());
+      class_.resize(t.nodes.size());
+      cum_.resize(t.nodes.size());
+    }
     for (uint32_t f = 0; f < 12; ++f) {
-      if (!(touched_ & (1u << f))) continue;
-      double acc = 0.0;
+      if (!(touched_ >> f & 1u)) continue;
       for (uint32_t k = t.faceStart[f]; k < t.faceStart[f + 1]; ++k) {
         const FrontierNode& nd = t.nodes[k];
-        const int cls = visibilityClass(faceCaps[f], g, nd.centre, nd.level);
+        const int cls = visibilityClass(faceCaps[f], nd.centre, nd.level);
         mass_[k] = cls == 0 ? 0.0 : cls == 2 ? nd.mass * double(options.partialVisibility) : nd.mass;
-        cum_[k] = acc;
-        acc += mass_[k];
+        class_[k] = uint8_t(cls);
+      }
+      for (int bin = 0; bin < kFrontierColourBins; ++bin) {
+        const size_t seg = size_t(bin * 12) + f;
+        double acc = 0.0;
+        for (uint32_t i = t.segStart[seg]; i < t.segStart[seg + 1]; ++i) {
+          cum_[i] = acc;
+          acc += mass_[t.cdfOrder[i]];
+        }
       }
     }
   } else {
     table_ = &own_;
-    auto factor = [&](int level, uint64_t i, float& bound, float& c, float& centre) {
+    caps_ = allCaps;
+    auto factor = [&](int level, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
       bound = point.brdfBound(i);
       if (!(bound > 0.0f)) return false;
       float vis = 1.0f;
-      if (options.visibility) {
-        const int cls = visibilityClass(allCaps, point.geometry, point.geometry.centers[i], level);
-        if (cls == 0) return false;
-        if (cls == 2) vis = options.partialVisibility;
+      if (!options.visibility) {
+        visibility = 1;
+      } else if (visibility == 2) {
+        visibility = visibilityClass(allCaps, point.geometry.centers[i], level);
+        if (visibility == 0) return false;
+        if (visibility == 2) vis = options.partialVisibility;
       }
       centre = point.brdfValue(point.geometry.centers[i]);
       c = std::max(centre, options.brdfFloor * bound) * vis;
       return true;
     };
-    refine(point.env, point.geometry.centers, frontierRefinements(options, n), options.coarseRatio, factor, own_);
-    touched_ = 0;
+    refine(point.env, point.geometry.centers, options.colourOrder ? &colourBins : nullptr,
+           frontierRefinements(options, n), options.coarseRatio, factor, own_);
   }
   const FrontierTable& t = *table_;
   total_ = 0.0;
-  for (uint32_t f = 0; f < 12; ++f) {
-    faceCum_[f] = total_;
-    const uint32_t first = t.faceStart[f], end = t.faceStart[f + 1];
-    if (touched_ & (1u << f))
-      total_ += end > first ? cum_[end - 1] + mass_[end - 1] : 0.0;
+  for (size_t seg = 0; seg < size_t(FrontierTable::kSegments); ++seg) {
+    segCum_[seg] = total_;
+    const uint32_t first = t.segStart[seg], end = t.segStart[seg + 1];
+    if (first == end) continue;
+    if (touched_ >> (seg % 12) & 1u)
+      total_ += cum_[end - 1] + mass_[t.cdfOrder[end - 1]];
     else
       total_ += t.cum[end] - t.cum[first];
   }
-  faceCum_[12] = total_;
+  segCum_.back() = total_;
 }
 
 double Frontier::mass(size_t k) const {
-  return touched_ & (1u << faceOf(table_->nodes[k])) ? mass_[k] : table_->nodes[k].mass;
+  const FrontierNode& nd = table_->nodes[k];
+  return touched(nd) ? mass_[k] : nd.mass;
 }
 
-double Frontier::cumInFace(size_t k, int face) const {
-  return touched_ & (1u << face) ? cum_[k] : table_->cum[k] - table_->cum[table_->faceStart[size_t(face)]];
+int Frontier::visibility(size_t k) const {
+  const FrontierNode& nd = table_->nodes[k];
+  return touched(nd) ? class_[k] : nd.visibility;
 }
 
 size_t Frontier::nodeOfLeaf(uint64_t leaf) const {
@@ -253,18 +311,48 @@ size_t Frontier::nodeOfLeaf(uint64_t leaf) const {
   return leaf - it->firstLeaf < leaves ? size_t(it - nodes.begin()) : nodes.size();
 }
 
-// The node's share times the probability of the leaf on the way down the
-// average tree, per unit solid angle.
-double Frontier::density(size_t k, uint64_t leaf) const {
+void Frontier::children(int level, uint64_t parent, int parentClass, double w[4], int cls[4]) const {
   const MaxAvgTree& tree = point_->env.tree;
-  const int top = table_->nodes[k].level;
+  const uint64_t first = MaxAvgTree::levelOffset(level) + 4 * parent;
+  for (int j = 0; j < 4; ++j) {
+    w[j] = tree.avgv[first + uint64_t(j)];
+    cls[j] = parentClass;
+  }
+  if (level > productLevel_) return;
+  const HtGeometry& g = point_->geometry;
+  double b[4], p[4], top = 0.0;
+  for (int j = 0; j < 4; ++j) {
+    const glm::vec3& centre = g.centers[first + uint64_t(j)];
+    if (parentClass == 2) cls[j] = visibilityClass(caps_, centre, level);
+    if (w[j] > 0.0 && cls[j] != 0)
+      b[j] = lambert_ ? double(std::max(glm::dot(centre, point_->n), 0.0f)) : double(point_->brdfValue(centre));
+    else
+      b[j] = 0.0;
+    top = std::max(top, b[j]);
+  }
+  // A child the integrand may reach keeps a weight above 0: its BRDF factor
+  // is at least the floor times its siblings' largest.
+  for (int j = 0; j < 4; ++j) {
+    const double v = cls[j] == 0 ? 0.0 : cls[j] == 2 ? double(partialVisibility_) : 1.0;
+    p[j] = w[j] * (top > 0.0 ? std::max(b[j], double(brdfFloor_) * top) : 1.0) * v;
+  }
+  // Caps over all four children leave the environment's weights.
+  if (p[0] + p[1] + p[2] + p[3] > 0.0)
+    for (int j = 0; j < 4; ++j) w[j] = p[j];
+}
+
+// The node's share times the probability of each choice on the way down to
+// the leaf, per unit solid angle.
+double Frontier::density(size_t k, uint64_t leaf) const {
   double p = mass(k) / total_;
-  for (int level = order_; level > top; --level) {
-    const uint64_t first = MaxAvgTree::levelOffset(level) + (leaf & ~uint64_t(3));
-    const double sum = double(tree.avgv[first]) + double(tree.avgv[first + 1]) + double(tree.avgv[first + 2]) +
-                       double(tree.avgv[first + 3]);
-    p *= double(tree.avgv[first + (leaf & 3)]) / sum;
-    leaf >>= 2;
+  int cls = visibility(k);
+  for (int level = table_->nodes[k].level + 1; level <= order_; ++level) {
+    const uint64_t node = leaf >> (2 * (order_ - level));
+    double w[4];
+    int c[4];
+    children(level, node >> 2, cls, w, c);
+    p *= w[node & 3] / (w[0] + w[1] + w[2] + w[3]);
+    cls = c[node & 3];
   }
   return p / healpix::pixelSolidAngle(order_);
 }
@@ -275,42 +363,48 @@ double Frontier::pdf(uint64_t leaf) const {
 }
 
 uint64_t Frontier::sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, double& pdf) const {
-  const MaxAvgTree& tree = point_->env.tree;
   const FrontierTable& tb = *table_;
-  // The face, then the node, whose interval of the mass CDF holds x.
+  // The segment, then the node, whose interval of the CDF holds x (one with
+  // mass: empty intervals are never strictly above their start).
   const double target = x * total_;
-  int face = 11;
-  while (face > 0 && !(faceCum_[size_t(face)] <= target && faceCum_[size_t(face) + 1] > faceCum_[size_t(face)])) --face;
-  while (!(faceCum_[size_t(face) + 1] > faceCum_[size_t(face)])) ++face;
-  const double r = target - faceCum_[size_t(face)];
-  const uint32_t first = tb.faceStart[size_t(face)], end = tb.faceStart[size_t(face) + 1];
-  size_t lo = first, hi = end;  // the last k with cumInFace(k) <= r
+  size_t seg = size_t(std::upper_bound(segCum_.begin() + 1, segCum_.end(), target) - segCum_.begin()) - 1;
+  seg = std::min(seg, size_t(FrontierTable::kSegments - 1));
+  while (seg > 0 && !(segCum_[seg + 1] > segCum_[seg])) --seg;
+  const bool own = touched_ >> (seg % 12) & 1u;
+  const uint32_t first = tb.segStart[seg], end = tb.segStart[seg + 1];
+  // Mass of the segment's nodes before position i.
+  auto before = [&](size_t i) { return own ? cum_[i] : tb.cum[i] - tb.cum[first]; };
+  const double r = target - segCum_[seg];
+  size_t lo = first, hi = end;  // the last position with before(i) <= r
   while (hi - lo > 1) {
     const size_t mid = (lo + hi) / 2;
-    (cumInFace(mid, face) <= r ? lo : hi) = mid;
+    (before(mid) <= r ? lo : hi) = mid;
   }
-  size_t k = lo;
-  while (k > first && !(mass(k) > 0.0)) --k;
-  while (!(mass(k) > 0.0)) ++k;
-  const FrontierNode& nd = tb.nodes[k];
-  const double share = mass(k) / total_;
-  double t = std::clamp((r - cumInFace(k, face)) / mass(k), 0.0, 1.0);
-  double p = share;
-  uint64_t node = nd.node;
-  for (int level = nd.level + 1; level <= order_; ++level) {
-    const uint64_t first = MaxAvgTree::levelOffset(level) + 4 * node;
-    const double a[4] = {tree.avgv[first], tree.avgv[first + 1], tree.avgv[first + 2], tree.avgv[first + 3]};
+  size_t i = lo;
+  while (i > first && !(mass(tb.cdfOrder[i]) > 0.0)) --i;
+  while (!(mass(tb.cdfOrder[i]) > 0.0)) ++i;
+  const size_t k = tb.cdfOrder[i];
+  double t = std::clamp((r - before(i)) / mass(k), 0.0, 1.0);
+  double p = mass(k) / total_;
+  uint64_t node = tb.nodes[k].node;
+  int cls = visibility(k);
+  for (int level = tb.nodes[k].level + 1; level <= order_; ++level) {
+    double a[4];
+    int c[4];
+    children(level, node, cls, a, c);
     const double sum = a[0] + a[1] + a[2] + a[3];
-    double target = t * sum, acc = 0.0;
+    const double target = t * sum;
+    double acc = 0.0;
     int j = 0;
     while (j < 3 && (a[j] <= 0.0 || acc + a[j] <= target)) {
       acc += a[j];
       ++j;
     }
-    while (a[j] <= 0.0) --j;  // the last child with radiance
+    while (a[j] <= 0.0) --j;  // the last child with weight
     t = std::clamp((target - acc) / a[j], 0.0, 1.0);
     p *= a[j] / sum;
     node = 4 * node + uint64_t(j);
+    cls = c[j];
   }
   pdf = p / healpix::pixelSolidAngle(order_);
   dirHp = healpix::pixToVec(order_, node, jitter.x, jitter.y);
@@ -333,7 +427,7 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
   htOptions.budgetRefinements = -1;
   const HtPoint point(scene, sp, htOptions, tables);
   thread_local Frontier frontier;
-  frontier.build(point, sp, options, n);
+  frontier.build(point, sp, options, n, tables.colourBins());
   if (!frontier.shared()) counters.htNodes += uint64_t(12 + 4 * frontier.splits());
   if (!(frontier.totalMass() > 0.0)) return glm::vec3(0.0f);
   const Shading sh(scene, sp, counters);

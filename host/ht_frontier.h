@@ -11,11 +11,14 @@
 //    BRDF x cos over it and c the estimate of BRDF x cos x visibility at its
 //    centre (never below a floor of B, so the density stays positive
 //    wherever the integrand can be).
-// 2. Give each node the mass E x c, order the nodes along the nested index
-//    and place n_t systematic points (i + u) / n_t on the mass CDF.
-// 3. Inside a node the point's remaining coordinate descends the
-//    environment's average tree to a leaf (density proportional to the
-//    radiance), and two fresh numbers place it inside the leaf.
+// 2. Give each node the mass E x c and order the nodes by the colour of
+//    their light (their mean radiance's blue-red balance), so that the
+//    stratified points below spread over light of each colour in proportion;
+//    place n_t systematic points (i + u) / n_t on the mass CDF in that order.
+// 3. Inside a node the point's remaining coordinate descends to a leaf,
+//    each child drawn by its environment average x BRDF x cos at its centre
+//    x its visibility class (down to a level, by the environment alone
+//    below), and two fresh numbers place it inside the leaf.
 // 4. Where the frontier is coarse for the BRDF (its mass sits in nodes with
 //    B much above c), n_b of the n directions are BRDF samples instead, and
 //    all n are combined by the balance heuristic, which stays unbiased with
@@ -56,7 +59,26 @@ struct FrontierOptions {
   float coarseRatio = 4.0f;     // a node is coarse for the BRDF when B > this x its centre value
   float maxBrdfShare = 0.5f;    // at most this share of the n directions from the BRDF
   bool visibility = true;       // caps in the density
+  // Below a table node, children are drawn by environment x BRDF x
+  // visibility down to this level, by the environment alone below it.
+  int productLevel = 5;
+  bool colourOrder = true;      // the CDF's nodes by colour (else along the nested index)
 };
+
+// A spherical cap of blocked directions seen from a shading point (HEALPix
+// frame). Per level: a node whose centre has cos(centre, axis) >= cosInside
+// lies inside it, one with <= cosOutside outside it.
+struct LightCap {
+  glm::vec3 axis;
+  std::array<float, 32> cosInside, cosOutside;
+};
+
+// The colour bins that order a frontier's CDF.
+constexpr int kFrontierColourBins = 16;
+// Per node of the environment's average tree (its layout), its colour bin:
+// (blue - red) / (red + green + blue) of its mean radiance, from -1 to 1 in
+// kFrontierColourBins equal steps (the middle one where it is black).
+std::vector<uint8_t> frontierColourBins(const Environment& env);
 
 struct FrontierNode {
   int level;
@@ -66,14 +88,19 @@ struct FrontierNode {
   double mass;         // E x c
   float brdfBound;     // B
   float brdfCentre;    // BRDF x cos at the centre
+  int visibility;      // class under the caps the table was built with: 1 free, 2 partly covered
 };
 
-// Nodes sorted along the nested index (so each face's nodes are one run),
-// with their masses.
+// Nodes sorted along the nested index, with their masses, and the order of
+// the CDF: by segment (colour bin, then face), along the nested index
+// inside each.
 struct FrontierTable {
+  static constexpr int kSegments = kFrontierColourBins * 12;
   std::vector<FrontierNode> nodes;
-  std::vector<double> cum;              // cum[k]: mass of the nodes before k (nodes.size() + 1 entries)
-  std::array<uint32_t, 13> faceStart{};  // the first node of each face, and the end
+  std::vector<uint32_t> cdfOrder;                 // node indices in CDF order
+  std::vector<double> cum;                        // cum[i]: mass before position i (cdfOrder.size() + 1 entries)
+  std::array<uint32_t, kSegments + 1> segStart{};  // first position of each segment, and the end
+  std::array<uint32_t, 13> faceStart{};           // first node of each face, and the end
   double coarseShare = 0.0;  // share of the mass in nodes coarse for the BRDF
   int splits = 0;
 };
@@ -83,8 +110,10 @@ class Frontier {
  public:
   // Prepares the frontier at `point` for n samples, reusing this object's
   // storage and, on a flat surface, the calling thread's shared tables.
-  // `point` is `sp` seen by HT (its visibility caps are not used).
-  void build(const HtPoint& point, const ShadingPoint& sp, const FrontierOptions& options, int n);
+  // `point` is `sp` seen by HT (its visibility caps are not used);
+  // `colourBins`: frontierColourBins of the point's environment.
+  void build(const HtPoint& point, const ShadingPoint& sp, const FrontierOptions& options, int n,
+             const std::vector<uint8_t>& colourBins);
 
   const FrontierTable& table() const { return *table_; }
   double totalMass() const { return total_; }
@@ -102,28 +131,37 @@ class Frontier {
  private:
   const HtPoint* point_ = nullptr;
   int order_ = 0;
+  int productLevel_ = 0;
+  float brdfFloor_ = 0.0f, partialVisibility_ = 1.0f;
+  bool lambert_ = false;  // the BRDF factor is cos+ (up to a constant)
   FrontierTable own_;
   const FrontierTable* table_ = &own_;
-  // This point's masses differ from the table's on the faces in `touched_`
-  // (a shared table under the point's caps); there `mass_` holds them and
-  // `cum_` their prefix sums from the face's first node.
+  std::vector<LightCap> caps_;  // the caps the descent applies
+  // This point's masses and visibility classes differ from the table's on
+  // the faces in `touched_` (a shared table under the point's caps); there
+  // `mass_` and `class_` hold them, by node, and `cum_` the masses' prefix
+  // sums from the start of each segment, by CDF position.
   uint32_t touched_ = 0;
   std::vector<double> mass_, cum_;
-  std::array<double, 13> faceCum_{};  // mass of the faces before each face
+  std::vector<uint8_t> class_;
+  std::array<double, FrontierTable::kSegments + 1> segCum_{};  // mass of the segments before each
   double total_ = 0.0;
 
-  static int faceOf(const FrontierNode& nd) { return int(nd.node >> (2 * nd.level)); }
+  bool touched(const FrontierNode& nd) const { return touched_ >> (nd.node >> (2 * nd.level)) & 1u; }
   double mass(size_t k) const;
-  // Mass of the nodes of k's face before k.
-  double cumInFace(size_t k, int face) const;
+  int visibility(size_t k) const;
   size_t nodeOfLeaf(uint64_t leaf) const;
   double density(size_t k, uint64_t leaf) const;
+  // The four children of `parent` (at `level`): their weights, and their
+  // visibility classes from the parent's.
+  void children(int level, uint64_t parent, int parentClass, double w[4], int cls[4]) const;
 };
 
 // Shared tables one thread keeps at most, and the bytes of one at the default
-// size (nodes and prefix sums).
+// size (nodes, CDF order and prefix sums).
 constexpr uint64_t kFrontierSharedTables = 64;
-constexpr uint64_t kFrontierSharedTableBytes = (3 * kFrontierSharedRefinements + 12) * (sizeof(FrontierNode) + 8);
+constexpr uint64_t kFrontierSharedTableBytes =
+    (3 * kFrontierSharedRefinements + 12) * (sizeof(FrontierNode) + sizeof(uint32_t) + sizeof(double));
 
 // The splits a per-point frontier makes for n samples.
 int frontierRefinements(const FrontierOptions& options, int n);
@@ -131,6 +169,7 @@ int frontierRefinements(const FrontierOptions& options, int n);
 int frontierBrdfCount(const Frontier& frontier, const FrontierOptions& options, int n);
 
 // HT frontier estimate at a shading point with exactly n directions.
+// `tables`: the geometry of the map's order and the colour bins.
 glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const FrontierOptions& options, int n,
                              Rng& rng, PixelSampler& sampler, EstimateCounters& counters, const MethodTables& tables);
 

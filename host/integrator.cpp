@@ -114,6 +114,8 @@ MethodTables prepareTables(const Scene& scene, Method method, const MethodOption
     t.wisCenters = std::make_shared<const std::vector<glm::vec3>>(
         healpixNodeCenters(WisPoint::orderFor(env, options.wisOrder)));
   if (method == Method::Tsis) t.tsis = std::make_shared<const TsisTable>(buildTsisTable(env));
+  if (method == Method::HtFrontier)
+    t.frontierBins = std::make_shared<const std::vector<uint8_t>>(frontierColourBins(env));
   return t;
 }
 

@@ -67,9 +67,11 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
     const int k = std::clamp(in.options.wisOrder, 0, std::min(in.envOrder, WisPoint::kMaxOrder));
     tables += add("wis node centres", MaxAvgTree::levelOffset(k + 1) * 12);
   }
-  if (in.method == Method::HtFrontier)
+  if (in.method == Method::HtFrontier) {
     tables += add("ht-frontier shared tables (per thread, at most)",
                   uint64_t(std::max(in.threads, 1)) * kFrontierSharedTables * kFrontierSharedTableBytes);
+    tables += add("ht-frontier colour bins (and their sums while built)", nodes * 13);
+  }
   uint64_t sat = 0;
   if (in.method == Method::Tsis) {
     const uint64_t n = (uint64_t(1) << std::min(in.envOrder, TsisTable::kMaxLevel)) + 1;

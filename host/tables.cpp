@@ -27,4 +27,9 @@ const std::shared_ptr<const TsisTable>& MethodTables::tsisTable() const {
   return tsis;
 }
 
+const std::vector<uint8_t>& MethodTables::colourBins() const {
+  if (!frontierBins) throw Error("internal: ht-frontier colour bins used but not prepared");
+  return *frontierBins;
+}
+
 }  // namespace ht

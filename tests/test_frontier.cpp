@@ -1,6 +1,10 @@
 // The HT frontier (ht-frontier): its density against its own samples, its
 // fixed sample count, unbiasedness with and without the shared tables of
-// flat surfaces, and images that sharing never changes.
+// flat surfaces, images that sharing never changes, the descent below the
+// table's nodes and the colour order of its CDF.
+#include <set>
+#include <tuple>
+
 #include <gtest/gtest.h>
 
 #include <tbb/global_control.h>
@@ -58,9 +62,9 @@ void prepare(const ShadingSetup& s, const FrontierOptions& options, int n, Prepa
   p.sp = s.sp;
   p.sp.material = &s.scene.materials[0];
   p.htOptions.budgetRefinements = -1;
-  p.tables = htTables(s.scene, p.htOptions);
+  p.tables = prepareTables(s.scene, Method::HtFrontier);
   p.point = std::make_unique<HtPoint>(s.scene, p.sp, p.htOptions, p.tables);
-  p.frontier.build(*p.point, p.sp, options, n);
+  p.frontier.build(*p.point, p.sp, options, n, p.tables.colourBins());
 }
 
 // Every setup's mean over `batches` estimates of n directions, for each n
@@ -117,6 +121,92 @@ TEST(Frontier, DensityMatchesItsSamples) {
     EXPECT_LT(worstPdf, 1e-9) << s.name;
     const Chi2Result r = chi2Test(observed, expected);
     EXPECT_GT(r.pValue, alpha) << s.name << "\n" << describe(r, observed, expected);
+  }
+}
+
+// Below a table node the descent follows the BRDF and the visibility caps:
+// fewer directions land where the integrand is surely 0 (below the horizon
+// or blocked by an occluder) than when children are drawn by the
+// environment alone (productLevel 0), on the shared table's path and on a
+// point's own coarse table (a one-sided z-test on the two shares).
+TEST(Frontier, DescentAvoidsDarkDirections) {
+  const std::vector<ShadingSetup> all = setups();
+  constexpr int kSamples = 100000;
+  for (const auto& [which, shared] :
+       {std::pair{size_t(0), true}, std::pair{size_t(4), true}, std::pair{size_t(0), false}}) {
+    const ShadingSetup& s = all[which];
+    double dark[2];
+    for (int product = 0; product < 2; ++product) {
+      FrontierOptions options;
+      options.productLevel = product ? s.scene.environment.order : 0;
+      options.refinements = 4;
+      if (!shared) options.sharedRefinements = -1;
+      PreparedPoint p;
+      prepare(s, options, 16, p);
+      Rng rng(11, 5);
+      int hits = 0;
+      for (int i = 0; i < kSamples; ++i) {
+        glm::dvec3 hp;
+        double pdf;
+        p.frontier.sample(rng.next(), rng.next2(), hp, pdf);
+        const glm::vec3 w = s.scene.environment.fromHealpixFrame(hp);
+        hits += glm::dot(w, s.sp.normal) <= 0.0f || occluded(s.scene, s.sp.position, w);
+      }
+      dark[product] = double(hits) / kSamples;
+    }
+    const double se = std::sqrt((dark[0] * (1.0 - dark[0]) + dark[1] * (1.0 - dark[1])) / kSamples);
+    EXPECT_GT(dark[0] - dark[1], 4.0 * se)
+        << s.name << (shared ? " shared" : " own") << ": " << dark[0] << " against " << dark[1];
+  }
+}
+
+// Colour bins: blue light takes the last bin, red the first, grey and black
+// the middle one; a node's bin is that of its mean radiance.
+TEST(Frontier, ColourBins) {
+  constexpr int kOrder = 2;
+  std::vector<glm::vec3> px(healpix::pixelCount(kOrder), glm::vec3(0.0f));
+  for (uint64_t i = 0; i < 16; ++i) px[i] = glm::vec3(0.0f, 0.0f, 1.0f);  // face 0: blue
+  for (uint64_t i = 16; i < 32; ++i) px[i] = glm::vec3(2.0f, 0.0f, 0.0f); // face 1: red
+  for (uint64_t i = 32; i < 48; ++i) px[i] = glm::vec3(0.5f);             // face 2: grey
+  px[48] = glm::vec3(0.0f, 0.0f, 1.0f);  // face 3: one blue pixel of 16
+  px[49] = glm::vec3(1.0f, 0.0f, 0.0f);  // and one red
+  const Environment env = environmentFromPixels(kOrder, std::move(px));
+  const std::vector<uint8_t> bins = frontierColourBins(env);
+  const int mid = kFrontierColourBins / 2;
+  EXPECT_EQ(bins[0], kFrontierColourBins - 1);
+  EXPECT_EQ(bins[1], 0);
+  EXPECT_EQ(bins[2], mid);
+  EXPECT_EQ(bins[3], mid);  // equal blue and red
+  EXPECT_EQ(bins[5], mid);  // black
+  EXPECT_EQ(bins[MaxAvgTree::levelOffset(kOrder) + 48], kFrontierColourBins - 1);
+  EXPECT_EQ(bins[MaxAvgTree::levelOffset(kOrder) + 49], 0);
+}
+
+// The CDF runs through the table's nodes by colour bin, then face, then
+// nested index, each node once.
+TEST(Frontier, CdfOrderGroupsColours) {
+  for (const ShadingSetup& s : setups()) {
+    PreparedPoint p;
+    prepare(s, FrontierOptions{}, 16, p);
+    const FrontierTable& t = p.frontier.table();
+    const std::vector<uint8_t>& bins = p.tables.colourBins();
+    ASSERT_EQ(t.cdfOrder.size(), t.nodes.size()) << s.name;
+    std::vector<bool> seen(t.nodes.size(), false);
+    std::tuple<int, uint64_t, uint64_t> last{-1, 0, 0};
+    std::set<int> binsUsed;
+    for (uint32_t k : t.cdfOrder) {
+      ASSERT_FALSE(seen[k]) << s.name;
+      seen[k] = true;
+      const FrontierNode& nd = t.nodes[k];
+      const int bin = bins[MaxAvgTree::levelOffset(nd.level) + nd.node];
+      binsUsed.insert(bin);
+      const std::tuple<int, uint64_t, uint64_t> key{bin, nd.node >> (2 * nd.level), nd.firstLeaf};
+      EXPECT_LT(last, key) << s.name;
+      last = key;
+    }
+    if (s.name.find("sunrise") != std::string::npos) {
+      EXPECT_GE(binsUsed.size(), 3u) << s.name;
+    }
   }
 }
 
