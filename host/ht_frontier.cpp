@@ -108,7 +108,9 @@ void lightCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& g, 
     const float cosA = c0 * cm + s0 * sm;
     if (!(sinA > 0.0f)) continue;
     LightCap c{o.axis, {}, {}};
-    for (size_t l = 0; l < c.cosInside.size(); ++l) {
+    c.cosInside.fill(2.0f);    // never inside
+    c.cosOutside.fill(-2.0f);  // never outside
+    for (size_t l = 0; l <= size_t(g.order); ++l) {
       const float cR = g.levelCosRadius[l], sR = g.levelSinRadius[l];
       c.cosInside[l] = sinA * cR - cosA * sR > 0.0f ? cosA * cR + sinA * sR : 2.0f;
       c.cosOutside[l] = cosA * cR - sinA * sR;
