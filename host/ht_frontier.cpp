@@ -213,9 +213,8 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
   brdfFloor_ = options.brdfFloor;
   partialVisibility_ = options.partialVisibility;
   lambert_ = point.material.type == MaterialType::Lambert && !point.table;
-  thread_local std::vector<LightCap> allCaps;
-  allCaps.clear();
-  if (options.visibility) lightCaps(point.scene, sp, point.geometry, allCaps);
+  caps_.clear();
+  if (options.visibility) lightCaps(point.scene, sp, point.geometry, caps_);
   touched_ = 0;
   if (sp.flat && lambert_ && options.sharedRefinements >= 0 && point.woLocal.z > 0.0f) {
     table_ = &sharedLambertTable(point, options, colourBins);
@@ -225,10 +224,10 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
     thread_local std::array<std::vector<LightCap>, 12> faceCaps;
     const HtGeometry& g = point.geometry;
     for (std::vector<LightCap>& caps : faceCaps) caps.clear();
-    caps_.clear();
-    for (const LightCap& c : allCaps) {
-      if (glm::dot(c.axis, point.n) < -0.9999f) continue;
-      caps_.push_back(c);
+    caps_.erase(std::remove_if(caps_.begin(), caps_.end(),
+                               [&](const LightCap& c) { return glm::dot(c.axis, point.n) < -0.9999f; }),
+                caps_.end());
+    for (const LightCap& c : caps_) {
       for (uint32_t f = 0; f < 12; ++f)
         if (glm::dot(g.centers[f], c.axis) > c.cosOutside[0]) {
           faceCaps[f].push_back(c);
@@ -260,7 +259,6 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
     }
   } else {
     table_ = &own_;
-    caps_ = allCaps;
     auto factor = [&](int level, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
       bound = point.brdfBound(i);
       if (!(bound > 0.0f)) return false;
@@ -268,7 +266,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
       if (!options.visibility) {
         visibility = 1;
       } else if (visibility == 2) {
-        visibility = visibilityClass(allCaps, point.geometry.centers[i], level);
+        visibility = visibilityClass(caps_, point.geometry.centers[i], level);
         if (visibility == 0) return false;
         if (visibility == 2) vis = options.partialVisibility;
       }
