@@ -214,30 +214,28 @@ float HtPoint::bound(int level, uint64_t node) const {
 // floor of its own bound, so that it is positive wherever the bound is.
 float HtPoint::nodeEstimate(int level, uint64_t node) const {
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
-  const glm::vec3& c = geometry.centers[i];
-  float brdf = std::max(brdfValue(c), options.brdfFloor * brdfBound(i));
-  float vis = 1.0f;
-  if (options.visibility) {
-    int cls = visibilityClass(c, level);
-    vis = cls == 0 ? 0.0f : cls == 1 ? 1.0f : 0.5f;
-  }
+  return nodeEstimate(level, node, brdfBound(i), options.visibility ? visibilityClass(geometry.centers[i], level) : 1);
+}
+
+float HtPoint::nodeEstimate(int level, uint64_t node, float brdfB, int cls) const {
+  const uint64_t i = MaxAvgTree::levelOffset(level) + node;
+  float brdf = std::max(brdfValue(geometry.centers[i]), options.brdfFloor * brdfB);
+  float vis = cls == 0 ? 0.0f : cls == 1 ? 1.0f : 0.5f;
   return env.tree.avgv[i] * brdf * vis;
 }
 
 float HtPoint::leafValue(uint64_t leaf, float pathMin) const {
-  const int D = env.order;
-  const uint64_t i = MaxAvgTree::levelOffset(D) + leaf;
+  const uint64_t i = MaxAvgTree::levelOffset(env.order) + leaf;
+  return leafValue(leaf, pathMin, brdfBound(i), options.visibility ? visibilityClass(geometry.centers[i], env.order) : 1);
+}
+
+float HtPoint::leafValue(uint64_t leaf, float pathMin, float brdfB, int cls) const {
+  const uint64_t i = MaxAvgTree::levelOffset(env.order) + leaf;
   float e = env.tree.avgv[i];
   if (e <= 0.0f || pathMin <= 0.0f) return 0.0f;
-  const glm::vec3& c = geometry.centers[i];
-  float brdfB = brdfBound(i);
-  if (brdfB <= 0.0f) return 0.0f;
-  float h = e * std::max(brdfValue(c), options.brdfFloor * brdfB);
-  if (options.visibility) {
-    int cls = visibilityClass(c, D);
-    if (cls == 0) return 0.0f;
-    if (cls == 2) h *= visibleFraction(leaf);
-  }
+  if (brdfB <= 0.0f || cls == 0) return 0.0f;
+  float h = e * std::max(brdfValue(geometry.centers[i]), options.brdfFloor * brdfB);
+  if (cls == 2) h *= visibleFraction(leaf);
   // Never above a bound used to prune an ancestor: pruning then loses nothing.
   return std::min(h, pathMin);
 }
@@ -291,17 +289,30 @@ void HtPoint::estimateBudget() {
     int level;
     uint64_t node;
     bool split;
+    float brdfBound;  // kept for nodeEstimate: the same values, computed once
+    int visibility;
   };
   thread_local std::vector<Node> nodes;
   thread_local std::vector<std::pair<double, int64_t>> heap;  // (mass, -index)
   nodes.clear();
   heap.clear();
   auto push = [&](int l, uint64_t p) {
-    double mass = double(bound(l, p)) * healpix::pixelSolidAngle(l);
+    // bound(l, p), keeping its factors.
+    const uint64_t i = MaxAvgTree::levelOffset(l) + p;
+    const float e = env.tree.maxv[i];
+    if (e <= 0.0f) return;
+    const float brdfB = brdfBound(i);
+    float b = e * brdfB;
+    int cls = 1;
+    if (b > 0.0f && options.visibility) {
+      cls = visibilityClass(geometry.centers[i], l);
+      if (cls == 0) return;
+    }
+    double mass = double(b) * healpix::pixelSolidAngle(l);
     if (!(mass > 0.0)) return;
     heap.emplace_back(mass, -int64_t(nodes.size()));
     std::push_heap(heap.begin(), heap.end());
-    nodes.push_back({l, p, false});
+    nodes.push_back({l, p, false, brdfB, cls});
   };
   for (int f = 0; f < 12; ++f) push(0, uint64_t(f));
   for (int k = 0; k < options.budgetRefinements && !heap.empty(); ++k) {
@@ -316,7 +327,8 @@ void HtPoint::estimateBudget() {
   }
   double c = 0.0;
   for (const Node& nd : nodes)
-    if (!nd.split) c += double(nodeEstimate(nd.level, nd.node)) * healpix::pixelSolidAngle(nd.level);
+    if (!nd.split)
+      c += double(nodeEstimate(nd.level, nd.node, nd.brdfBound, nd.visibility)) * healpix::pixelSolidAngle(nd.level);
   cEst_ = c;
 }
 
@@ -342,17 +354,35 @@ void HtPoint::traverse(uint32_t pixelSeed, float u, PixelSampler& jitter, std::v
 
 void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const {
   ++w.counters.nodes;
-  float b = bound(level, node);
+  // bound(level, node), with the caps tested only where the cone's bound
+  // alone does not prune: a blocked node's bound is 0 and prunes too.
+  const uint64_t i = MaxAvgTree::levelOffset(level) + node;
+  const float e = env.tree.maxv[i];
+  const float brdfB = e > 0.0f ? brdfBound(i) : 0.0f;
+  float b = e > 0.0f ? e * brdfB : 0.0f;
+  const double ru = double(r) + w.u;
+  if (ru >= threshold(b)) return;
+  int cls = 1;
+  if (options.visibility) {
+    cls = visibilityClass(geometry.centers[i], level);
+    if (cls == 0) return;
+  }
   pathMin = std::min(pathMin, b);
-  if (double(r) + w.u >= threshold(b)) return;
-  if (options.biased && stopEarly(w, level, node, r, pathMin)) return;
+  if (options.biased && stopEarly(w, level, node, r, pathMin, brdfB, cls)) return;
   if (level == env.order) {
-    float h = leafValue(node, pathMin);
+    float h = leafValue(node, pathMin, brdfB, cls);
     if (h > 0.0f) visitVirtual(w, level, node, r, h, node, 0, 0);
     return;
   }
+  // Every leaf below has h <= pathMin and every candidate below is >= the
+  // child's lowest one: a child whose lowest candidate misses T(pathMin)
+  // accepts nothing, and its bound need not be computed.
+  const double tPath = threshold(pathMin);
   const auto& perm = permutation(w.seed, level, node);
-  for (int j = 0; j < 4; ++j) visit(w, level + 1, 4 * node + j, r + perm[j] * stride(level), pathMin);
+  for (int j = 0; j < 4; ++j) {
+    const uint64_t rc = r + perm[j] * stride(level);
+    if (double(rc) + w.u < tPath) visit(w, level + 1, 4 * node + j, rc, pathMin);
+  }
 }
 
 // Biased variant: where the BRDF hardly varies over a node and the node
@@ -361,18 +391,18 @@ void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin
 // bounded by the smoothness threshold; with more samples per pixel, nodes
 // hold more candidates, the traversal goes deeper and the contributions
 // blend back to exact ones.
-bool HtPoint::stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const {
+bool HtPoint::stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pathMin, float brdfB, int cls) const {
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
   const glm::vec3& c = geometry.centers[i];
   float centre = brdfValue(c);
   // Smooth where the BRDF's maximum over the node is close to its centre
   // value; the tables' maxima carry a margin that is not the BRDF's.
   const float margin = options.brdfTable ? BrdfTable::kMargin : 1.0f;
-  if (!(centre > 0.0f) || brdfBound(i) > (1.0f + options.biasedSmoothness) * centre * margin) return false;
+  if (!(centre > 0.0f) || brdfB > (1.0f + options.biasedSmoothness) * centre * margin) return false;
   // The environment keeps its exact value; a node where it varies a lot
   // would turn that into fireflies.
   if (env.tree.maxv[i] > 2.0f * env.tree.avgv[i]) return false;
-  if (options.visibility && visibilityClass(c, level) != 1) return false;
+  if (cls != 1) return false;
   float h = std::min(pathMin, env.tree.avgv[i] * centre);
   if (!(h > 0.0f)) return false;
   const double t = threshold(h);

@@ -186,13 +186,17 @@ class HtPoint {
   int visibilityClass(const glm::vec3& axis, int level) const;
   float visibleFraction(uint64_t leaf) const;
   float nodeEstimate(int level, uint64_t node) const;
+  // The same with the node's BRDF bound and visibility class known.
+  float nodeEstimate(int level, uint64_t node, float brdfBound, int visibility) const;
 
  private:
   struct Walk;
   void visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const;
+  // leafValue with the leaf's BRDF bound and visibility class known.
+  float leafValue(uint64_t leaf, float pathBound, float brdfBound, int visibility) const;
   static const std::array<uint8_t, 4>& permutation(uint32_t pixelSeed, int level, uint64_t node);
   void visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float h, uint64_t leaf, uint64_t sx, uint64_t sy) const;
-  bool stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const;
+  bool stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pathMin, float brdfBound, int visibility) const;
   void estimateBudget();
 
   double cEst_ = 1.0;

@@ -393,6 +393,31 @@ void htShadePending(Shading sh, inout Sampler smp) {
 // The smallest bound on the path, per data level (the one value the hash cannot give back).
 float gHtPathMin[HT_MAX_ORDER + 1];
 
+// The walk's next node after (level, node) and everything below it: the
+// next sibling, going up as far as needed; after the last face, face 12.
+void htNextSibling(uint seed, uint64_t faceDigits, inout uint face, inout uint level, inout uint64_t node,
+                   inout uint64_t r) {
+  for (;;) {
+    if (level == 0u) {
+      ++face;
+      node = uint64_t(face);
+      r = (faceDigits >> (4u * face)) & 15ul;
+      return;
+    }
+    uint j = uint(node & 3ul);
+    uint64_t stride = htStride(level - 1u);
+    if (j < 3u) {
+      uint perm = htPermutation(seed, level - 1u, node >> 2);
+      r = r % stride + uint64_t(htDigit(perm, j + 1u)) * stride;
+      ++node;
+      return;
+    }
+    r %= stride;
+    node >>= 2;
+    --level;
+  }
+}
+
 // False when the pixel has nothing to sample.
 bool htBegin(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout uint rng, out HtWalk w) {
   w.seed = rngNextUint(rng);
@@ -546,27 +571,15 @@ bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint
       r += uint64_t(htDigit(htPermutation(seed, level, node), 0u)) * htStride(level);
       node *= 4ul;
       ++level;
-      continue;
+    } else {
+      htNextSibling(seed, faceDigits, face, level, node, r);
     }
-    // Next sibling, going up as far as needed; after the last face, done.
-    for (;;) {
-      if (level == 0u) {
-        ++face;
-        node = uint64_t(face);
-        r = (faceDigits >> (4u * face)) & 15ul;
-        break;
-      }
-      uint j = uint(node & 3ul);
-      uint64_t stride = htStride(level - 1u);
-      if (j < 3u) {
-        uint perm = htPermutation(seed, level - 1u, node >> 2);
-        r = r % stride + uint64_t(htDigit(perm, j + 1u)) * stride;
-        ++node;
-        break;
-      }
-      r %= stride;
-      node >>= 2;
-      --level;
+    // HtPoint::visit's children test: a data node whose lowest candidate
+    // misses the threshold of its parent's path bound accepts nothing below.
+    while (face < 12u && level > 0u && level <= ht.order) {
+      precise hreal ru = hreal(r) + ht.u;
+      if (ru < htThreshold(gHtPathMin[level - 1u])) break;
+      htNextSibling(seed, faceDigits, face, level, node, r);
     }
     finished = face == 12u;
   }
