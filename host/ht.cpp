@@ -73,6 +73,13 @@ std::unique_ptr<HtGeometry> buildGeometry(int order) {
 
 glm::vec3 toFloat(const glm::dvec3& v) { return glm::vec3(v); }
 
+// healpix::pixelSolidAngle per level, without a division per node.
+constexpr std::array<double, healpix::kMaxOrder + 1> kPixelSolidAngle = [] {
+  std::array<double, healpix::kMaxOrder + 1> a{};
+  for (int l = 0; l <= healpix::kMaxOrder; ++l) a[l] = healpix::pixelSolidAngle(l);
+  return a;
+}();
+
 }  // namespace
 
 std::shared_ptr<const HtGeometry> buildHtGeometry(int order) { return buildGeometry(order); }
@@ -247,7 +254,10 @@ float HtPoint::pathBound(uint64_t leaf) const {
 }
 
 const std::array<uint8_t, 4>& HtPoint::permutation(uint32_t pixelSeed, int level, uint64_t node) {
-  uint32_t h = pcgHash(pixelSeed ^ pcgHash(uint32_t(level) ^ pcgHash(uint32_t(node) ^ pcgHash(uint32_t(node >> 32)))));
+  constexpr uint32_t kHashOfZero = pcgHash(0u);  // the high word of every data node
+  const uint32_t high = uint32_t(node >> 32);
+  const uint32_t highHash = high == 0u ? kHashOfZero : pcgHash(high);
+  uint32_t h = pcgHash(pixelSeed ^ pcgHash(uint32_t(level) ^ pcgHash(uint32_t(node) ^ highHash)));
   return kPermutations[h % 24];
 }
 
@@ -255,18 +265,20 @@ int HtPoint::digit(uint32_t pixelSeed, int level, uint64_t node, int child) {
   return permutation(pixelSeed, level, node)[child];
 }
 
-uint64_t HtPoint::faceDigit(uint32_t pixelSeed, int face) const {
-  if (!options.sphereSequence) return 0;
+std::array<uint8_t, 12> HtPoint::faceDigits(uint32_t pixelSeed) const {
+  std::array<uint8_t, 12> perm{};
+  if (!options.sphereSequence) return perm;
   // Fisher-Yates shuffle of the 12 faces, drawn from the pixel seed.
-  std::array<uint8_t, 12> perm;
   for (int i = 0; i < 12; ++i) perm[i] = uint8_t(i);
   uint32_t h = pcgHash(pixelSeed ^ 0x9e3779b9u);
   for (int i = 11; i > 0; --i) {
     h = pcgHash(h);
     std::swap(perm[i], perm[h % uint32_t(i + 1)]);
   }
-  return perm[face];
+  return perm;
 }
+
+uint64_t HtPoint::faceDigit(uint32_t pixelSeed, int face) const { return faceDigits(pixelSeed)[face]; }
 
 uint64_t HtPoint::lowestCandidate(uint32_t pixelSeed, int level, uint64_t node) const {
   // Digits of the path from the face root (level 0) down to `node`.
@@ -285,50 +297,48 @@ void HtPoint::estimateBudget() {
   // sample count, never the expectation of the estimate. The largest mass
   // comes from a heap; ties go to the node inserted first, and the sum runs
   // in insertion order, as the GPU's linear scan does.
-  struct Node {
-    int level;
-    uint64_t node;
-    bool split;
-    float brdfBound;  // kept for nodeEstimate: the same values, computed once
-    int visibility;
-  };
-  thread_local std::vector<Node> nodes;
   thread_local std::vector<std::pair<double, int64_t>> heap;  // (mass, -index)
+  std::vector<BudgetNode>& nodes = budget_;
   nodes.clear();
+  nodes.reserve(12 + 4 * size_t(std::max(0, options.budgetRefinements)));
   heap.clear();
-  auto push = [&](int l, uint64_t p) {
+  auto push = [&](int l, uint64_t p) -> int32_t {
     // bound(l, p), keeping its factors.
     const uint64_t i = MaxAvgTree::levelOffset(l) + p;
     const float e = env.tree.maxv[i];
-    if (e <= 0.0f) return;
+    if (e <= 0.0f) return -1;
     const float brdfB = brdfBound(i);
     float b = e * brdfB;
     int cls = 1;
     if (b > 0.0f && options.visibility) {
       cls = visibilityClass(geometry.centers[i], l);
-      if (cls == 0) return;
+      if (cls == 0) return -1;
     }
-    double mass = double(b) * healpix::pixelSolidAngle(l);
-    if (!(mass > 0.0)) return;
+    double mass = double(b) * kPixelSolidAngle[l];
+    if (!(mass > 0.0)) return -1;
     heap.emplace_back(mass, -int64_t(nodes.size()));
     std::push_heap(heap.begin(), heap.end());
-    nodes.push_back({l, p, false, brdfB, cls});
+    nodes.push_back({l, p, false, brdfB, cls, {-1, -1, -1, -1}});
+    return int32_t(nodes.size() - 1);
   };
-  for (int f = 0; f < 12; ++f) push(0, uint64_t(f));
+  for (int f = 0; f < 12; ++f) budgetFace_[f] = push(0, uint64_t(f));
   for (int k = 0; k < options.budgetRefinements && !heap.empty(); ++k) {
-    Node& top = nodes[size_t(-heap.front().second)];
-    if (top.level >= env.order) break;
+    const size_t top = size_t(-heap.front().second);
+    if (nodes[top].level >= env.order) break;
     std::pop_heap(heap.begin(), heap.end());
     heap.pop_back();
-    top.split = true;
-    const int level = top.level + 1;
-    const uint64_t first = 4 * top.node;
-    for (int j = 0; j < 4; ++j) push(level, first + uint64_t(j));
+    nodes[top].split = true;
+    const int level = nodes[top].level + 1;
+    const uint64_t first = 4 * nodes[top].node;
+    for (int j = 0; j < 4; ++j) {
+      const int32_t child = push(level, first + uint64_t(j));
+      nodes[top].child[j] = child;
+    }
   }
   double c = 0.0;
-  for (const Node& nd : nodes)
+  for (const BudgetNode& nd : nodes)
     if (!nd.split)
-      c += double(nodeEstimate(nd.level, nd.node, nd.brdfBound, nd.visibility)) * healpix::pixelSolidAngle(nd.level);
+      c += double(nodeEstimate(nd.level, nd.node, nd.brdfBound, nd.visibility)) * kPixelSolidAngle[nd.level];
   cEst_ = c;
 }
 
@@ -346,24 +356,29 @@ struct HtPoint::Walk {
 void HtPoint::traverse(uint32_t pixelSeed, float u, PixelSampler& jitter, std::vector<HtSample>& out,
                        HtCounters& counters) const {
   if (s_ <= 0.0) return;
+  const std::array<uint8_t, 12> digits = faceDigits(pixelSeed);
   for (int f = 0; f < 12; ++f) {
     Walk w{pixelSeed, double(u), f, jitter, out, counters};
-    visit(w, 0, uint64_t(f), faceDigit(pixelSeed, f), INFINITY);
+    visit(w, 0, uint64_t(f), digits[f], INFINITY, budgetFace_[f]);
   }
 }
 
-void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const {
+void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin, int32_t known) const {
   ++w.counters.nodes;
   // bound(level, node), with the caps tested only where the cone's bound
-  // alone does not prune: a blocked node's bound is 0 and prunes too.
+  // alone does not prune: a blocked node's bound is 0 and prunes too. The
+  // budget's nodes (`known`) keep the factors it computed.
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
+  const BudgetNode* kn = known >= 0 ? &budget_[size_t(known)] : nullptr;
   const float e = env.tree.maxv[i];
-  const float brdfB = e > 0.0f ? brdfBound(i) : 0.0f;
+  const float brdfB = kn ? kn->brdfBound : e > 0.0f ? brdfBound(i) : 0.0f;
   float b = e > 0.0f ? e * brdfB : 0.0f;
   const double ru = double(r) + w.u;
   if (ru >= threshold(b)) return;
   int cls = 1;
-  if (options.visibility) {
+  if (kn) {
+    cls = kn->visibility;
+  } else if (options.visibility) {
     cls = visibilityClass(geometry.centers[i], level);
     if (cls == 0) return;
   }
@@ -381,7 +396,7 @@ void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin
   const auto& perm = permutation(w.seed, level, node);
   for (int j = 0; j < 4; ++j) {
     const uint64_t rc = r + perm[j] * stride(level);
-    if (double(rc) + w.u < tPath) visit(w, level + 1, 4 * node + j, rc, pathMin);
+    if (double(rc) + w.u < tPath) visit(w, level + 1, 4 * node + j, rc, pathMin, kn && kn->split ? kn->child[j] : -1);
   }
 }
 

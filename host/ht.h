@@ -161,6 +161,7 @@ class HtPoint {
   uint64_t lowestCandidate(uint32_t pixelSeed, int level, uint64_t node) const;
   // The digit of a face in the whole-sphere sequence (0 for face sequences).
   uint64_t faceDigit(uint32_t pixelSeed, int face) const;
+  std::array<uint8_t, 12> faceDigits(uint32_t pixelSeed) const;
   static int digit(uint32_t pixelSeed, int level, uint64_t node, int child);
 
   static constexpr double kFaceSolidAngle = 4.0 * 3.14159265358979323846 / 12.0;
@@ -191,7 +192,7 @@ class HtPoint {
 
  private:
   struct Walk;
-  void visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin) const;
+  void visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin, int32_t known) const;
   // leafValue with the leaf's BRDF bound and visibility class known.
   float leafValue(uint64_t leaf, float pathBound, float brdfBound, int visibility) const;
   static const std::array<uint8_t, 4>& permutation(uint32_t pixelSeed, int level, uint64_t node);
@@ -199,6 +200,19 @@ class HtPoint {
   bool stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pathMin, float brdfBound, int visibility) const;
   void estimateBudget();
 
+  // The budget's frontier and the nodes it split, with the BRDF bound and
+  // visibility class of each: the traversal takes them instead of
+  // computing them again. child[j]: index of child j, -1 where not kept.
+  struct BudgetNode {
+    int level;
+    uint64_t node;
+    bool split;
+    float brdfBound;
+    int visibility;
+    std::array<int32_t, 4> child;
+  };
+  std::vector<BudgetNode> budget_;
+  std::array<int32_t, 12> budgetFace_{-1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1};
   double cEst_ = 1.0;
   double s_ = 0.0;
 };

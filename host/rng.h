@@ -11,7 +11,7 @@ namespace ht {
 
 // PCG-RXS-M-XS 32-bit output permutation used as a hash (Jarzynski & Olano,
 // "Hash Functions for GPU Rendering", JCGT 2020).
-inline uint32_t pcgHash(uint32_t v) {
+constexpr uint32_t pcgHash(uint32_t v) {
   uint32_t state = v * 747796405u + 2891336453u;
   uint32_t word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
   return (word >> 22u) ^ word;
