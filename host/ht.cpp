@@ -208,12 +208,23 @@ float HtPoint::visibleFraction(uint64_t leaf) const {
 }
 
 float HtPoint::bound(int level, uint64_t node) const {
+  float brdfB;
+  int cls;
+  return bound(level, node, brdfB, cls);
+}
+
+float HtPoint::bound(int level, uint64_t node, float& brdfB, int& cls) const {
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
+  brdfB = 0.0f;
+  cls = 1;
   float e = env.tree.maxv[i];
   if (e <= 0.0f) return 0.0f;
-  const glm::vec3& c = geometry.centers[i];
-  float b = e * brdfBound(i);
-  if (b > 0.0f && options.visibility && visibilityClass(c, level) == 0) return 0.0f;
+  brdfB = brdfBound(i);
+  float b = e * brdfB;
+  if (b > 0.0f && options.visibility) {
+    cls = visibilityClass(geometry.centers[i], level);
+    if (cls == 0) return 0.0f;
+  }
   return b;
 }
 
@@ -303,18 +314,9 @@ void HtPoint::estimateBudget() {
   nodes.reserve(12 + 4 * size_t(std::max(0, options.budgetRefinements)));
   heap.clear();
   auto push = [&](int l, uint64_t p) -> int32_t {
-    // bound(l, p), keeping its factors.
-    const uint64_t i = MaxAvgTree::levelOffset(l) + p;
-    const float e = env.tree.maxv[i];
-    if (e <= 0.0f) return -1;
-    const float brdfB = brdfBound(i);
-    float b = e * brdfB;
-    int cls = 1;
-    if (b > 0.0f && options.visibility) {
-      cls = visibilityClass(geometry.centers[i], l);
-      if (cls == 0) return -1;
-    }
-    double mass = double(b) * kPixelSolidAngle[l];
+    float brdfB;
+    int cls;
+    double mass = double(bound(l, p, brdfB, cls)) * kPixelSolidAngle[l];
     if (!(mass > 0.0)) return -1;
     heap.emplace_back(mass, -int64_t(nodes.size()));
     std::push_heap(heap.begin(), heap.end());
@@ -396,7 +398,7 @@ void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin
   const auto& perm = permutation(w.seed, level, node);
   for (int j = 0; j < 4; ++j) {
     const uint64_t rc = r + perm[j] * stride(level);
-    if (double(rc) + w.u < tPath) visit(w, level + 1, 4 * node + j, rc, pathMin, kn && kn->split ? kn->child[j] : -1);
+    if (double(rc) + w.u < tPath) visit(w, level + 1, 4 * node + j, rc, pathMin, kn ? kn->child[j] : -1);
   }
 }
 

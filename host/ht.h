@@ -193,6 +193,8 @@ class HtPoint {
  private:
   struct Walk;
   void visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin, int32_t known) const;
+  // bound(), also giving its BRDF bound and visibility class.
+  float bound(int level, uint64_t node, float& brdfBound, int& visibility) const;
   // leafValue with the leaf's BRDF bound and visibility class known.
   float leafValue(uint64_t leaf, float pathBound, float brdfBound, int visibility) const;
   static const std::array<uint8_t, 4>& permutation(uint32_t pixelSeed, int level, uint64_t node);
@@ -202,7 +204,8 @@ class HtPoint {
 
   // The budget's frontier and the nodes it split, with the BRDF bound and
   // visibility class of each: the traversal takes them instead of
-  // computing them again. child[j]: index of child j, -1 where not kept.
+  // computing them again. child[j]: index of child j, -1 where not kept
+  // or not split.
   struct BudgetNode {
     int level;
     uint64_t node;
