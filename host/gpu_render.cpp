@@ -17,6 +17,7 @@
 #include "brdf_table.h"
 #include "healpix.h"
 #include "ht.h"
+#include "ht_frontier.h"
 #include "sampling.h"
 #include "tsis.h"
 #include "wis.h"
@@ -32,10 +33,14 @@ using namespace ht::gpu;
 // Directions per dispatch: bounds the time of one dispatch (about 1 s on
 // lavapipe with 2 cores for mis, far less on a GPU).
 constexpr uint64_t kDirectionsPerDispatch = uint64_t(1) << 22;
+// ht-frontier: the tile's scratch (its pixels' tables) at most.
+constexpr uint64_t kScratchBytes = uint64_t(96) << 20;
 
 static_assert(BrdfTable::kMargin == float(HT_BRDF_TABLE_MARGIN));
 static_assert(uint32_t(SamplerKind::Independent) == HT_SAMPLER_INDEPENDENT &&
               uint32_t(SamplerKind::Stratified) == HT_SAMPLER_STRATIFIED);
+static_assert(FrontierTable::kSegments == HT_FRONTIER_SEGMENTS && kFrontierColourBins * 12 == HT_FRONTIER_SEGMENTS);
+static_assert(int(Method::HtFrontier) == HT_METHOD_HT_FRONTIER);
 static_assert(TsisPoint::kDefaultRegions == HT_TSIS_REGIONS && TsisTable::kMaxLevel == HT_TSIS_MAX_LEVEL);
 static_assert(WisPoint::kExactLevels == HT_WIS_EXACT_LEVELS && WisPoint::kMaxOrder == HT_WIS_MAX_ORDER &&
               MaxAvgTree::levelOffset(HT_WIS_EXACT_LEVELS + 1) == HT_WIS_TOP_NODES);
@@ -128,6 +133,9 @@ uint32_t firstBatchLimit(const RenderSettings& s, int envOrder, size_t shapes) {
     case Method::HtVis:
     case Method::HtBiased:
     case Method::HtVisBiased: cost = 2 * HT_MAX_ORDER + 6 * shapes + descent; break;
+    // Per direction a descent of four children a level, each under the
+    // caps, and a few binary searches.
+    case Method::HtFrontier: cost = uint64_t(envOrder) * (4 + 4 * shapes) + 40 + descent; break;
     default: break;
   }
   return uint32_t(std::clamp<uint64_t>(kLoopIterationsPerBatch / cost, 1, 1u << 20));
@@ -139,6 +147,7 @@ const char* familyShader(Family f) {
     case Family::Baseline: return "baselines";
     case Family::Ht: return "ht";
     case Family::Competitor: return "competitors";
+    case Family::Product: return "frontier";
     default: return nullptr;
   }
 }
@@ -193,6 +202,7 @@ struct GpuRenderer::Impl {
   vk::Buffer tsisScratch;  // GpuTsisSlot per region and tile pixel
   vk::Buffer wisScratch;   // HT_WIS_TOP_NODES doubles per tile pixel
   vk::Buffer htPending;    // GpuHtPending per slot and tile pixel
+  vk::Buffer frontierScratch;  // ht-frontier: GpuFrontierScene::pixelBytes per tile pixel
   // The method's tables, uploaded at their first render (the scene struct
   // uploaded again), with what they were made from.
   GpuScene scene{};
@@ -206,6 +216,12 @@ struct GpuRenderer::Impl {
   vk::Buffer brdfBuffer;
   std::shared_ptr<const TsisTable> tsis;
   vk::Buffer tsisBuffer;
+  // ht-frontier: its colour bins (per map) and, per render, its shared
+  // tables and settings (GpuFrontierScene).
+  std::shared_ptr<const std::vector<uint8_t>> frontierBins;
+  vk::Buffer frontierBinsBuffer;
+  std::vector<vk::Buffer> frontierBuffers;
+  GpuFrontierScene frontier{};
   bool recordHtSamples = false;
   vk::Buffer htSampleLog;
 
@@ -215,6 +231,7 @@ struct GpuRenderer::Impl {
     return precision == GpuPrecision::Fp64 || (precision == GpuPrecision::Auto && methodInfo(method).gpuFloat64);
   }
   void uploadTables(const RenderSettings& s, const MethodTables& tables);
+  void uploadFrontier(const RenderSettings& s, const MethodTables& tables);
   void checkMethod(const RenderSettings& s) const;
   std::pair<uint32_t, uint32_t> prepareTiles(const RenderSettings& s);
   void bindScratch(const RenderSettings& s, GpuPush& push) const;
@@ -343,6 +360,9 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.brdfBuffer = {};
   m.tsis = nullptr;
   m.tsisBuffer = {};
+  m.frontierBins = nullptr;
+  m.frontierBinsBuffer = {};
+  m.frontierBuffers.clear();
   m.hostScene = &scene;
   m.hasScene = true;
 }
@@ -352,7 +372,7 @@ void GpuRenderer::setScene(const Scene& scene) {
 void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables& t) {
   const MethodInfo& info = methodInfo(s.method);
   bool changed = false;
-  if (info.family == Family::Ht) {
+  if (info.family == Family::Ht || s.method == Method::HtFrontier) {
     if (info.visibility && occluders > HT_MAX_CAPS)
       throw Error(fmt::format("method {} on the GPU handles at most {} spheres and planes (the scene has {}); "
                               "use --device cpu", methodName(s.method), HT_MAX_CAPS, occluders));
@@ -369,7 +389,8 @@ void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables
       geometry = t.htGeometry;
       changed = true;
     }
-    if (s.options.brdfBounds == MethodOptions::BrdfBounds::Table && brdfTables != t.brdfTables) {
+    if (info.family == Family::Ht && s.options.brdfBounds == MethodOptions::BrdfBounds::Table &&
+        brdfTables != t.brdfTables) {
       if (t.brdfTables.size() != materialCount) throw Error("internal: BRDF tables not prepared for every material");
       std::vector<float> all;
       for (const auto& table : t.brdfTables) {
@@ -393,7 +414,130 @@ void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables
     tsis = t.tsis;
     changed = true;
   }
+  if (s.method == Method::HtFrontier) {
+    uploadFrontier(s, t);
+    changed = true;
+  }
   if (changed) sceneBuffer.upload(&scene, sizeof(scene));
+}
+
+// ht-frontier's GpuFrontierScene for this render: FrontierOptions as
+// estimateDirect sets them, the shared Lambert table of each side of each
+// plane with a Lambert material, and the layout of a pixel's scratch.
+void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTables& t) {
+  const Scene& hs = *hostScene;
+  const Environment& env = hs.environment;
+  const HtGeometry& g = t.geometry();
+  const std::vector<uint8_t>& bins = t.colourBins();
+  FrontierOptions options;
+  options.refinements = s.options.frontierRefinements;
+  const int n = std::max(s.spp, 1);
+  const bool fp64 = usesFloat64(s.method);
+  if (frontierBins != t.frontierBins) {
+    std::vector<uint32_t> packed((bins.size() + 3) / 4, 0u);
+    for (size_t i = 0; i < bins.size(); ++i) packed[i / 4] |= uint32_t(bins[i]) << (8 * (i % 4));
+    frontierBinsBuffer = uploadArray(ctx, packed);
+    frontierBins = t.frontierBins;
+  }
+  GpuFrontierScene& f = frontier;
+  f = GpuFrontierScene{};
+  f.bins = frontierBinsBuffer.address();
+
+  std::vector<glm::vec3> normals;
+  if (options.sharedRefinements >= 0)
+    for (const Plane& p : hs.planes) {
+      if (hs.materials[size_t(p.material)].type != MaterialType::Lambert) continue;
+      for (const glm::vec3& side : {p.normal, -p.normal}) {
+        const glm::vec3 nHp = frontierSurfaceNormal(env, side);
+        if (std::find(normals.begin(), normals.end(), nHp) == normals.end()) normals.push_back(nHp);
+      }
+    }
+  if (normals.size() > size_t(HT_FRONTIER_MAX_SHARED))
+    throw Error(fmt::format("method ht-frontier on the GPU handles at most {} planes; use --device cpu",
+                            HT_FRONTIER_MAX_SHARED / 2));
+  std::vector<GpuFrontierHeader> headers;
+  std::vector<GpuFrontierNode> nodes;
+  std::vector<uint32_t> order;
+  std::vector<double> mass, cum;
+  uint32_t sharedCapacity = 0;
+  for (size_t k = 0; k < normals.size(); ++k) {
+    FrontierTable table;
+    buildSharedFrontierTable(env, g, normals[k], options, bins, table);
+    GpuFrontierHeader h{};
+    std::copy(table.segStart.begin(), table.segStart.end(), h.segStart);
+    std::copy(table.faceStart.begin(), table.faceStart.end(), h.faceStart);
+    h.count = uint32_t(table.nodes.size());
+    h.splits = uint32_t(table.splits);
+    h.brdfCount = uint32_t(frontierBrdfCount(table.coarseShare, options, n));
+    h.nodeBase = uint32_t(nodes.size());
+    h.cumBase = uint32_t(cum.size());
+    headers.push_back(h);
+    for (const FrontierNode& nd : table.nodes) {
+      nodes.push_back({uint32_t(nd.level), uint32_t(nd.node), nd.brdfBound, nd.brdfCentre, uint32_t(nd.visibility), 0u});
+      mass.push_back(nd.mass);
+    }
+    order.insert(order.end(), table.cdfOrder.begin(), table.cdfOrder.end());
+    cum.insert(cum.end(), table.cum.begin(), table.cum.end());
+    sharedCapacity = std::max(sharedCapacity, h.count);
+    f.sharedNormal[k] = normals[k];
+  }
+  // Reals in the shader variant's precision.
+  auto reals = [&](const std::vector<double>& v) {
+    if (fp64) return uploadArray(ctx, v);
+    return uploadArray(ctx, std::vector<float>(v.begin(), v.end()));
+  };
+  frontierBuffers.clear();
+  frontierBuffers.push_back(uploadArray(ctx, headers));
+  frontierBuffers.push_back(uploadArray(ctx, nodes));
+  frontierBuffers.push_back(uploadArray(ctx, order));
+  frontierBuffers.push_back(reals(mass));
+  frontierBuffers.push_back(reals(cum));
+  f.sharedHeaders = frontierBuffers[0].address();
+  f.sharedNodes = frontierBuffers[1].address();
+  f.sharedOrder = frontierBuffers[2].address();
+  f.sharedMass = frontierBuffers[3].address();
+  f.sharedCum = frontierBuffers[4].address();
+  f.sharedCount = uint32_t(normals.size());
+  std::copy(g.levelCosRadius.begin(), g.levelCosRadius.end(), f.levelCosRadius);
+  std::copy(g.levelSinRadius.begin(), g.levelSinRadius.end(), f.levelSinRadius);
+  const uint32_t refinements = uint32_t(frontierRefinements(options, n));
+  f.refinements = refinements;
+  f.capacity = 12 + 3 * refinements;
+  f.sharedCapacity = sharedCapacity;
+  f.brdfFloor = options.brdfFloor;
+  f.partialVisibility = options.partialVisibility;
+  f.coarseRatio = options.coarseRatio;
+  f.maxBrdfShare = options.maxBrdfShare;
+  f.productLevel = uint32_t(std::max(options.productLevel, 0));
+  f.flags = (options.visibility ? HT_FRONTIER_VISIBILITY : 0u) | (options.colourOrder ? HT_FRONTIER_COLOUR_ORDER : 0u);
+  f.capCosMargin = std::cos(kCapMargin);
+  f.capSinMargin = std::sin(kCapMargin);
+  // The pixel's scratch: GpuFrontierPoint first, then each array 8-byte aligned.
+  const uint32_t real = fp64 ? 8 : 4;
+  const uint32_t candidates = 12 + 4 * refinements;
+  uint32_t at = uint32_t(sizeof(GpuFrontierPoint));
+  auto place = [&](uint32_t bytes) {
+    const uint32_t o = at;
+    at = (at + bytes + 7) / 8 * 8;
+    return o;
+  };
+  f.offHeader = place(sizeof(GpuFrontierHeader));
+  f.offNodes = place(f.capacity * sizeof(GpuFrontierNode));
+  f.offOrder = place(f.capacity * 4);
+  f.offMass = place(f.capacity * real);
+  f.offCum = place((f.capacity + 1) * real);
+  f.offCandidates = place(candidates * sizeof(GpuFrontierNode));
+  f.offCandidateMass = place(candidates * real);
+  f.offHeapKey = place(candidates * real);
+  f.offHeapIndex = place(std::max<uint32_t>(candidates, HT_FRONTIER_SEGMENTS) * 4);  // also the counting sort's
+  f.offPointMass = place(sharedCapacity * real);
+  f.offPointClass = place(sharedCapacity * 4);
+  f.offPointCum = place(sharedCapacity * real);
+  f.offSegCum = place((HT_FRONTIER_SEGMENTS + 1) * real);
+  f.pixelBytes = at;
+  frontierBuffers.push_back(vk::Buffer(ctx, sizeof(GpuFrontierScene), vk::MemoryUse::DeviceLocal));
+  frontierBuffers.back().upload(&f, sizeof(f));
+  scene.frontier = frontierBuffers.back().address();
 }
 
 namespace {
@@ -465,8 +609,11 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
 // samples take at most 32 MiB); their buffers.
 std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettings& s) {
   const bool htMethod = methodInfo(s.method).family == Family::Ht;
+  const bool frontierMethod = s.method == Method::HtFrontier;
   uint32_t side = htMethod ? std::min<uint32_t>(maxTileSide, kHtMaxTileSide) : maxTileSide;
   while (side > kWorkgroupSize && uint64_t(side) * side * directionsPerPixel(s) > kDirectionsPerDispatch)
+    side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
+  while (frontierMethod && side > kWorkgroupSize && uint64_t(side) * side * frontier.pixelBytes > kScratchBytes)
     side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
   const uint32_t tileW = std::min<uint32_t>(side, uint32_t(s.width));
   const uint32_t tileH = std::min<uint32_t>(side, uint32_t(s.height));
@@ -483,6 +630,9 @@ std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettin
   const VkDeviceSize wisBytes = tilePixels * HT_WIS_TOP_NODES * sizeof(double);
   const bool wisMethod = s.method == Method::Wis || s.method == Method::WisBiased;
   if (wisMethod && wisScratch.size() < wisBytes) wisScratch = vk::Buffer(ctx, wisBytes, vk::MemoryUse::DeviceLocal);
+  const VkDeviceSize frontierBytes = tilePixels * frontier.pixelBytes;
+  if (frontierMethod && frontierScratch.size() < frontierBytes)
+    frontierScratch = vk::Buffer(ctx, frontierBytes, vk::MemoryUse::DeviceLocal);
   const VkDeviceSize pendingBytes = tilePixels * HT_PENDING_SLOTS * sizeof(GpuHtPending);
   if (htMethod && htPending.size() < pendingBytes)
     htPending = vk::Buffer(ctx, pendingBytes, vk::MemoryUse::DeviceLocal);
@@ -498,6 +648,7 @@ void GpuRenderer::Impl::bindScratch(const RenderSettings& s, GpuPush& push) cons
   push.wisScratch = s.method == Method::Wis || s.method == Method::WisBiased ? wisScratch.address() : 0;
   push.pixelState = pixelState.address();
   if (methodInfo(s.method).family == Family::Ht) push.htPending = htPending.address();
+  if (s.method == Method::HtFrontier) push.frontierScratch = frontierScratch.address();
   if (methodInfo(s.method).family == Family::Ht && recordHtSamples) {
     const VkDeviceAddress a = htSampleLog.address();
     push.htSampleLog = glm::uvec2(uint32_t(a), uint32_t(a >> 32));
@@ -556,7 +707,9 @@ void GpuRenderer::Impl::renderTile(const RenderSettings& s, GpuPush& push, uint3
   for (uint32_t batch = 0;;) {
     // The sampling methods need ceil(spp / limit) batches; HT's traversal
     // takes some 40 steps per sample, read back to see when it is done.
-    const uint64_t expected = htMethod ? (40 * spp + 400 + limit - 1) / limit : (spp + limit - 1) / limit;
+    // ht-frontier builds its tables in a batch of their own.
+    const uint64_t expected = htMethod ? (40 * spp + 400 + limit - 1) / limit
+                                       : (spp + limit - 1) / limit + (s.method == Method::HtFrontier ? 1 : 0);
     const uint32_t count =
         uint32_t(std::clamp<uint64_t>(expected - std::min<uint64_t>(expected, batch), 1, kBatchesPerSubmission));
     const double seconds = submitBatches(push, batch, count, limit);

@@ -165,23 +165,32 @@ const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOpti
   std::unique_ptr<FrontierTable>& entry = cache[key];
   if (entry) return *entry;
   entry = std::make_unique<FrontierTable>();
-  const HtGeometry& g = point.geometry;
-  // Albedo and 1/pi scale every node alike: the shape is cos+ alone.
-  auto factor = [&](int, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
-    visibility = 1;
-    const glm::vec3& axis = g.centers[i];
-    bound = cosClosest(axis, point.n, g.cosSinRadius[i].x, g.cosSinRadius[i].y);
-    if (!(bound > 0.0f)) return false;
-    centre = std::max(glm::dot(axis, point.n), 0.0f);
-    c = std::max(centre, options.brdfFloor * bound);
-    return true;
-  };
-  refine(point.env, g.centers, options.colourOrder ? &colourBins : nullptr, options.sharedRefinements,
-         options.coarseRatio, factor, *entry);
+  buildSharedFrontierTable(point.env, point.geometry, point.n, options, colourBins, *entry);
   return *entry;
 }
 
 }  // namespace
+
+glm::vec3 frontierSurfaceNormal(const Environment& env, const glm::vec3& normal) {
+  return Frame(glm::normalize(glm::vec3(env.toHealpixFrame(normal)))).n;
+}
+
+void buildSharedFrontierTable(const Environment& env, const HtGeometry& g, const glm::vec3& n,
+                              const FrontierOptions& options, const std::vector<uint8_t>& colourBins,
+                              FrontierTable& table) {
+  // Albedo and 1/pi scale every node alike: the shape is cos+ alone.
+  auto factor = [&](int, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
+    visibility = 1;
+    const glm::vec3& axis = g.centers[i];
+    bound = cosClosest(axis, n, g.cosSinRadius[i].x, g.cosSinRadius[i].y);
+    if (!(bound > 0.0f)) return false;
+    centre = std::max(glm::dot(axis, n), 0.0f);
+    c = std::max(centre, options.brdfFloor * bound);
+    return true;
+  };
+  refine(env, g.centers, options.colourOrder ? &colourBins : nullptr, options.sharedRefinements, options.coarseRatio,
+         factor, table);
+}
 
 int frontierRefinements(const FrontierOptions& options, int n) {
   return options.refinements >= 0 ? options.refinements : std::min(16 + std::max(n, 0), 256);
@@ -412,7 +421,11 @@ uint64_t Frontier::sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, 
 }
 
 int frontierBrdfCount(const Frontier& frontier, const FrontierOptions& options, int n) {
-  const double share = std::min(frontier.coarseShare(), double(options.maxBrdfShare));
+  return frontierBrdfCount(frontier.coarseShare(), options, n);
+}
+
+int frontierBrdfCount(double coarseShare, const FrontierOptions& options, int n) {
+  const double share = std::min(coarseShare, double(options.maxBrdfShare));
   // At least one direction from the table: a lone BRDF sample would miss the
   // light the table finds.
   return std::clamp(int(std::lround(share * n)), 0, std::max(n - 1, 0));

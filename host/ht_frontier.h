@@ -165,8 +165,17 @@ constexpr uint64_t kFrontierSharedTableBytes =
 
 // The splits a per-point frontier makes for n samples.
 int frontierRefinements(const FrontierOptions& options, int n);
-// The n_b of n directions that come from BRDF sampling.
+// The n_b of n directions that come from BRDF sampling (of a table whose
+// share of mass in nodes coarse for the BRDF is `coarseShare`).
 int frontierBrdfCount(const Frontier& frontier, const FrontierOptions& options, int n);
+int frontierBrdfCount(double coarseShare, const FrontierOptions& options, int n);
+
+// A flat surface's shared Lambert table: `n` is the surface's normal as a
+// shading point sees it (frontierSurfaceNormal of the world normal).
+glm::vec3 frontierSurfaceNormal(const Environment& env, const glm::vec3& normal);
+void buildSharedFrontierTable(const Environment& env, const HtGeometry& geometry, const glm::vec3& n,
+                              const FrontierOptions& options, const std::vector<uint8_t>& colourBins,
+                              FrontierTable& table);
 
 // HT frontier estimate at a shading point with exactly n directions.
 // `tables`: the geometry of the map's order and the colour bins.

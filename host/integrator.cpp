@@ -44,7 +44,7 @@ constexpr std::array kMethods = {
                Competitor, false, false, true},
     MethodInfo{Method::HtFrontier, "ht-frontier",
                "exactly n stratified samples of env x BRDF x visibility over an adaptive HT frontier, BRDF by MIS",
-               Product, false, true},
+               Product, false, true, true},
 };
 
 constexpr bool registryInEnumOrder() {

@@ -43,6 +43,7 @@
 #define HT_METHOD_WIS_BIASED 11
 #define HT_METHOD_TSIS 12
 #define HT_METHOD_RIS 13
+#define HT_METHOD_HT_FRONTIER 14
 #define HT_METHOD_ANY 0xFFFFFFFFu  // pixel.glsl's specialization constant: use GpuPush::method
 #define HT_SPEC_METHOD 0           // its constant_id
 
@@ -81,6 +82,16 @@
 #define HT_BRDF_TABLE_CELLS (HT_BRDF_TABLE_THETA_O * HT_BRDF_TABLE_THETA * HT_BRDF_TABLE_PHI)
 #define HT_BRDF_TABLE_FLOATS (2 * HT_BRDF_TABLE_CELLS + 16 * (2048 + 512 + 128 + 32 + 8 + 2))
 
+// ht-frontier: the CDF's segments (kFrontierColourBins colour bins x 12
+// faces), the shared Lambert tables a scene may have (both sides of each
+// plane), GpuFrontierPoint::table of a point with a table of its own, and
+// GpuFrontierScene::flags.
+#define HT_FRONTIER_SEGMENTS 192
+#define HT_FRONTIER_MAX_SHARED 32
+#define HT_FRONTIER_OWN 0xFFFFFFFFu
+#define HT_FRONTIER_VISIBILITY 1u
+#define HT_FRONTIER_COLOUR_ORDER 2u
+
 #define HT_MATERIAL_LAMBERT 0
 #define HT_MATERIAL_PHONG 1
 #define HT_MATERIAL_GGX 2
@@ -110,6 +121,15 @@ layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer Dou
 layout(buffer_reference) buffer TsisScratch;
 layout(buffer_reference) buffer PixelStates;
 layout(buffer_reference) buffer HtPendingList;
+layout(buffer_reference) buffer FrontierSceneRef;
+layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierUints { uint v[]; };
+#if HT_FP64
+layout(buffer_reference, scalar, buffer_reference_align = 8) buffer FrontierReals { double v[]; };
+#else
+layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierReals { float v[]; };
+#endif
+layout(buffer_reference) buffer FrontierNodes;
+layout(buffer_reference) buffer FrontierHeaders;
 #if HT_FP64
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer WisScratch { double v[]; };
 #else
@@ -154,6 +174,8 @@ struct GpuScene {
   uint tsisReserved;
   // ht* with table bounds: HT_BRDF_TABLE_FLOATS per material, in material order; 0 if absent.
   HT_CHUNK_REF(FloatChunk) htBrdfTables;
+  // ht-frontier: its tables (GpuFrontierScene); 0 if absent.
+  HT_CHUNK_REF(FrontierSceneRef) frontier;
 };
 
 struct GpuMaterial {
@@ -246,6 +268,70 @@ struct GpuPixelState {
   uint64_t htResumeI;   // hreal bits: the next candidate of that acceptance
 };
 
+// ht-frontier (host/ht_frontier.h). A table: its nodes along the nested
+// index, their masses, the CDF's order of them (by segment) and the masses'
+// prefix sums in that order. Reals are doubles in the HT_FP64 shader,
+// floats otherwise.
+struct GpuFrontierNode {
+  uint level;
+  uint node;
+  float brdfBound;   // B
+  float brdfCentre;  // BRDF x cos at the centre
+  uint visibility;   // 1 free, 2 partly covered
+  uint link;         // while refining: the candidate's parent
+};
+struct GpuFrontierHeader {
+  uint segStart[HT_FRONTIER_SEGMENTS + 1];  // first CDF position of each segment, and the end
+  uint faceStart[13];                        // first node of each face, and the end
+  uint count;      // nodes
+  uint splits;
+  uint brdfCount;  // n_b of this render's n directions
+  uint nodeBase;   // shared tables: the first node and prefix sum in the shared arrays
+  uint cumBase;
+  uint pad;
+};
+// Per tile pixel, at the start of its scratch: what the batches after the
+// first read.
+struct GpuFrontierPoint {
+  uint table;    // shared table, or HT_FRONTIER_OWN
+  uint touched;  // faces where the point's caps change a shared table's masses
+  uint nt;       // directions from the table
+  uint nb;       // directions from the BRDF
+  uint64_t total;  // real bits: the point's total mass
+  uint64_t u;      // real bits: the systematic points' offset
+};
+// Per render. A pixel's scratch holds, at these byte offsets, its own table
+// (header, nodes, order, masses, prefix sums; `capacity` nodes), the
+// refinement's candidates and heap, and its masses, classes and prefix sums
+// over a shared table (`sharedCapacity` nodes) under its caps.
+struct GpuFrontierScene {
+  HT_CHUNK_REF(FrontierUints) bins;  // colour bin per average-tree node, four per uint
+  HT_CHUNK_REF(FrontierHeaders) sharedHeaders;
+  HT_CHUNK_REF(FrontierNodes) sharedNodes;
+  HT_CHUNK_REF(FrontierUints) sharedOrder;
+  HT_CHUNK_REF(FrontierReals) sharedMass;
+  HT_CHUNK_REF(FrontierReals) sharedCum;
+  vec3 sharedNormal[HT_FRONTIER_MAX_SHARED];  // HEALPix frame, as a point on the plane sees it
+  float levelCosRadius[32];
+  float levelSinRadius[32];
+  uint sharedCount;
+  uint refinements;  // splits of a point's own table
+  uint capacity;
+  uint sharedCapacity;
+  float brdfFloor;
+  float partialVisibility;
+  float coarseRatio;
+  float maxBrdfShare;
+  uint productLevel;
+  uint flags;  // HT_FRONTIER_*
+  float capCosMargin;  // cos and sin of kCapMargin
+  float capSinMargin;
+  uint offHeader, offNodes, offOrder, offMass, offCum;
+  uint offCandidates, offCandidateMass, offHeapKey, offHeapIndex;
+  uint offPointMass, offPointClass, offPointCum, offSegCum;
+  uint pixelBytes;
+};
+
 // Per dispatch (at most 128 bytes on lavapipe).
 // tsis: one region of a shading point's partition (TsisRegion); its doubles
 // are uvec2 in the HT_FP64 = 0 shader, which has no tsis.
@@ -267,6 +353,10 @@ struct GpuTsisSlot {
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer TsisScratch { GpuTsisSlot slots[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer PixelStates { GpuPixelState s[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer HtPendingList { GpuHtPending p[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer FrontierSceneRef { GpuFrontierScene f; };
+layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierNodes { GpuFrontierNode v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierHeaders { GpuFrontierHeader v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 8) buffer FrontierPoints { GpuFrontierPoint v[]; };
 #endif
 
 struct GpuPush {
@@ -300,11 +390,19 @@ struct GpuPush {
   uint canaryLoops; // iterations of the loop that tells whether loops were cut short
   uint canaryZero;  // always 0: keeps the compiler from folding that loop away
   HT_CHUNK_REF(HtPendingList) htPending;  // ht*: GpuHtPending[HT_PENDING_SLOTS per tile pixel]
+  uint64_t frontierScratch;  // ht-frontier: GpuFrontierScene::pixelBytes per tile pixel
 };
 
 #ifdef __cplusplus
-static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 120);
-static_assert(offsetof(GpuScene, htBrdfTables) - offsetof(GpuScene, camPosition) == 112);
+static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 128);
+static_assert(sizeof(GpuFrontierNode) == 24 && sizeof(GpuFrontierHeader) == 4 * (HT_FRONTIER_SEGMENTS + 20) &&
+              sizeof(GpuFrontierPoint) == 32 && offsetof(GpuFrontierPoint, total) == 16);
+static_assert(offsetof(GpuFrontierScene, sharedNormal) == 48 &&
+              offsetof(GpuFrontierScene, levelCosRadius) == 48 + 12 * HT_FRONTIER_MAX_SHARED &&
+              offsetof(GpuFrontierScene, sharedCount) == 48 + 12 * HT_FRONTIER_MAX_SHARED + 256 &&
+              sizeof(GpuFrontierScene) == 48 + 12 * HT_FRONTIER_MAX_SHARED + 256 + 4 * 26);
+static_assert(offsetof(GpuScene, htBrdfTables) - offsetof(GpuScene, camPosition) == 112 &&
+              offsetof(GpuScene, frontier) - offsetof(GpuScene, camPosition) == 120);
 static_assert(offsetof(GpuScene, tsisSat) - offsetof(GpuScene, camPosition) == 96 &&
               offsetof(GpuScene, tsisLevel) - offsetof(GpuScene, camPosition) == 104);
 static_assert(offsetof(GpuScene, treeAvg) == 8 * HT_MAX_CHUNKS);
@@ -317,7 +415,7 @@ static_assert(sizeof(GpuMaterial) == 40 && offsetof(GpuMaterial, diffuse) == 4 &
 static_assert(sizeof(GpuSphere) == 20 && offsetof(GpuSphere, radius) == 12 && offsetof(GpuSphere, material) == 16);
 static_assert(sizeof(GpuPlane) == 28 && offsetof(GpuPlane, normal) == 12 && offsetof(GpuPlane, material) == 24);
 static_assert(sizeof(GpuPixel) == 32 && offsetof(GpuPixel, shaded) == 12 && offsetof(GpuPixel, htNodes) == 24);
-static_assert(sizeof(GpuPush) == 120 && offsetof(GpuPush, htPending) == 112 && offsetof(GpuPush, seed) == 32 && offsetof(GpuPush, risCandidates) == 60 &&
+static_assert(sizeof(GpuPush) == 128 && offsetof(GpuPush, frontierScratch) == 120 && offsetof(GpuPush, htPending) == 112 && offsetof(GpuPush, seed) == 32 && offsetof(GpuPush, risCandidates) == 60 &&
               offsetof(GpuPush, tsisScratch) == 64 && offsetof(GpuPush, wisScratch) == 72 &&
               offsetof(GpuPush, wisOrder) == 80 && offsetof(GpuPush, pixelState) == 88 &&
               offsetof(GpuPush, batch) == 96 && offsetof(GpuPush, canaryLoops) == 104);

@@ -32,6 +32,7 @@ struct PixelJob {
   bool cut;        // a loop stopped before it should have
   vec3 position, normal, wo;
   uint materialIndex;
+  bool planar;  // on a plane
   Shading sh;
   vec3 background;  // radiance of a ray that misses the scene
 };
@@ -47,6 +48,7 @@ bool pixelStart(out PixelJob job) {
   job.slot = local.y * pc.tileWidth + local.x;
   job.cut = false;
   job.background = vec3(0.0);
+  job.planar = false;
 
   precise float px = float(x) + 0.5;
   precise float py = float(y) + 0.5;
@@ -64,6 +66,7 @@ bool pixelStart(out PixelJob job) {
   job.normal = hit.normal;
   job.wo = -ray.dir;
   job.materialIndex = hit.material;
+  job.planar = hit.planar;
   job.sh.frame = makeFrame(hit.normal);
   job.sh.woLocal = toLocal(job.sh.frame, job.wo);
   job.sh.origin = offsetRayOrigin(hit.position, hit.normal);

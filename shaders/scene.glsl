@@ -15,6 +15,7 @@ struct Hit {
   vec3 position;
   vec3 normal;  // geometric, unit, facing the incoming ray
   uint material;
+  bool planar;  // on a plane
 };
 
 // cameraRay with the basis and tan(fov / 2) computed on the host (GpuScene).
@@ -75,6 +76,7 @@ bool intersectScene(Ray ray, float tMin, float tMax, out Hit hit) {
   hit.position = vec3(0.0);
   hit.normal = vec3(0.0);
   hit.material = 0u;
+  hit.planar = false;
   for (uint i = 0u; i < scene.sphereCount; ++i) {
     GpuSphere s = spheres[i];
     if (hitSphere(s, ray, tMin, tMax, t)) {
@@ -86,6 +88,7 @@ bool intersectScene(Ray ray, float tMin, float tMax, out Hit hit) {
       precise vec3 outward = p - s.center;
       hit.normal = normalize3(outward);
       hit.material = s.material;
+      hit.planar = false;
     }
   }
   for (uint i = 0u; i < scene.planeCount; ++i) {
@@ -98,6 +101,7 @@ bool intersectScene(Ray ray, float tMin, float tMax, out Hit hit) {
       hit.position = p;
       hit.normal = pl.normal;
       hit.material = pl.material;
+      hit.planar = true;
     }
   }
   if (any && dot3(hit.normal, ray.dir) > 0.0) hit.normal = -hit.normal;

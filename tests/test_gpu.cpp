@@ -104,7 +104,7 @@ RenderSettings settings(Method method, int spp, uint32_t seed, int width = 80, i
 
 std::vector<std::string> spirvFiles() {
   std::vector<std::string> files;
-  for (const char* name : {"baselines", "ht", "competitors", "healpix_test"})
+  for (const char* name : {"baselines", "ht", "competitors", "frontier", "healpix_test"})
     for (const char* variant : {"fp64", "fp32"}) files.push_back(kShaderDir + "/" + name + "." + variant + ".spv");
   return files;
 }
@@ -655,7 +655,7 @@ TEST(GpuRenderTiles, BlackEnvironmentAndRefusedMethods) {
   scene.environment = constantEnvironment(2, glm::vec3(0.0f));
   GpuRenderer r(gpuOptions());
   r.setScene(scene);
-  for (Method m : {Method::Uniform, Method::Env, Method::Mis, Method::Ris, Method::Tsis, Method::Wis}) {
+  for (Method m : {Method::Uniform, Method::Env, Method::Mis, Method::Ris, Method::Tsis, Method::Wis, Method::HtFrontier}) {
     GpuRenderResult g = r.render(settings(m, 2, 1, 16, 8));
     for (const glm::vec3& p : g.result.image.pixels) ASSERT_EQ(p, glm::vec3(0.0f)) << methodName(m);
   }
@@ -785,7 +785,8 @@ std::string highSppName(const HighSppCase& c) {
 std::vector<HighSppCase> highSppCases(int spp) {
   std::vector<HighSppCase> cases;
   for (Method m : {Method::Uniform, Method::Cosine, Method::Env, Method::Brdf, Method::Mis, Method::Ht, Method::HtVis,
-                   Method::HtBiased, Method::HtVisBiased, Method::Wis, Method::WisBiased, Method::Tsis, Method::Ris})
+                   Method::HtBiased, Method::HtVisBiased, Method::Wis, Method::WisBiased, Method::Tsis, Method::Ris,
+                   Method::HtFrontier})
     cases.push_back({m, MethodOptions::BrdfBounds::Analytic, spp});
   for (Method m : {Method::Ht, Method::HtVis, Method::HtBiased, Method::HtVisBiased})
     cases.push_back({m, MethodOptions::BrdfBounds::Table, spp});
@@ -882,6 +883,53 @@ TEST(GpuBatches, LoopsCutShortAreRedone) {
     }
     EXPECT_GT(g.result.counters.directions, cpu.counters.directions / 2);
   }
+  expectNoValidationMessages();
+}
+
+
+// ---------------------------------------------------------------- ht-frontier
+
+// ht-frontier in the fp64 shader draws the CPU's directions: its tables
+// (own ones refined on the GPU, the plane's shared one built on the host)
+// split the same nodes in the same order, so the same seed gives the same
+// image and the same counts.
+INSTANTIATE_TEST_SUITE_P(Product, GpuSameSeed,
+                         ::testing::Values(MethodCase{Method::HtFrontier, false},
+                                           MethodCase{Method::HtFrontier, false, SamplerKind::Independent}),
+                         [](const auto& info) {
+                           std::string name = caseName(info.param);
+                           std::replace(name.begin(), name.end(), '-', '_');
+                           return name;
+                         });
+INSTANTIATE_TEST_SUITE_P(Product, GpuOtherSeeds, ::testing::Values(Method::HtFrontier),
+                         [](const auto&) { return std::string("ht_frontier"); });
+// In float the masses' sums and the directions round otherwise: the same
+// estimator, other directions.
+INSTANTIATE_TEST_SUITE_P(Product, GpuOtherSeedsFp32, ::testing::Values(Method::HtFrontier),
+                         [](const auto&) { return std::string("ht_frontier"); });
+
+// The nodes each pixel's table bounds (the stats' HT node count) are the
+// CPU's, pixel by pixel in sum, and a pixel's scratch is its own: small
+// tiles give the same image.
+TEST(GpuFrontier, SameTablesAndTilesGiveTheSameImage) {
+  const Scene& scene = testScene();
+  GpuOptions small = gpuOptions();
+  small.maxTileSide = 16;
+  GpuRenderer tiled(small), whole(gpuOptions());
+  if (!whole.float64()) GTEST_SKIP() << "device without shaderFloat64";
+  tiled.setScene(scene);
+  whole.setScene(scene);
+  const RenderSettings rs = settings(Method::HtFrontier, 8, 3, 61, 29);
+  GpuRenderResult a = tiled.render(rs), b = whole.render(rs);
+  const RenderResult cpu = renderCpu(scene, rs);
+  EXPECT_EQ(a.tiles, 4 * 2);
+  EXPECT_GT(cpu.counters.htNodes, 0u);
+  EXPECT_EQ(b.result.counters.htNodes, cpu.counters.htNodes);
+  EXPECT_EQ(a.result.counters.htNodes, cpu.counters.htNodes);
+  EXPECT_EQ(b.result.counters.directions, uint64_t(8) * cpu.shadedPixels);
+  size_t differ = 0;
+  for (size_t i = 0; i < a.result.image.pixels.size(); ++i) differ += a.result.image.pixels[i] != b.result.image.pixels[i];
+  EXPECT_EQ(differ, 0u);
   expectNoValidationMessages();
 }
 

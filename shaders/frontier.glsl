@@ -1,0 +1,633 @@
+// ht-frontier (host/ht_frontier.cpp): exactly n directions over an adaptive
+// frontier of HEALPix nodes, drawn as on the CPU for the same pixel and
+// seed (HT_FP64; the fp32 shader keeps the masses in float).
+//
+// A point's own table is refined in its scratch (GpuFrontierScene's
+// offsets): candidates and a binary heap on (priority, index), whose largest
+// element is unique, so it splits the nodes std::pop_heap would, in the same
+// order. The nodes the refinement leaves unsplit are read out depth first,
+// which is the nested index's order the CPU sorts them into. A flat Lambert
+// surface takes its plane's shared table (built on the host) and applies its
+// own caps to the faces they reach.
+//
+// The first batch of a pixel builds its table; the later ones draw
+// directions from it (GpuFrontierPoint carries the rest).
+#ifndef HT_FRONTIER_GLSL
+#define HT_FRONTIER_GLSL
+
+#include "ht.glsl"
+
+#define gFs scene.frontier.f
+#define kFrontierNone 0xFFFFFFFFu
+
+// The pixel's scratch, and the table it samples.
+uint64_t gFrBase;
+FrontierHeaders gFrHeader;
+FrontierNodes gFrNodes;
+FrontierUints gFrOrder;
+FrontierReals gFrMass, gFrCum;
+// The point's masses, classes and prefix sums over a shared table on the
+// faces in gFrTouched, and the mass of the segments before each.
+FrontierReals gFrPointMass, gFrPointCum, gFrSegCum;
+FrontierUints gFrPointClass;
+uint gFrTouched;
+hreal gFrTotal;
+bool gFrLambert;
+
+// lightCaps: per cap its axis and the sine and cosine of its step-angle
+// less the margin. gFrCaps: the caps the point applies (bits).
+uint gFrCapCount;
+vec3 gFrCapAxis[HT_MAX_CAPS];
+float gFrCapSin[HT_MAX_CAPS];
+float gFrCapCos[HT_MAX_CAPS];
+uint gFrCaps;
+
+FrontierReals frontierReals(uint offset) { return FrontierReals(gFrBase + uint64_t(offset)); }
+FrontierUints frontierUints(uint offset) { return FrontierUints(gFrBase + uint64_t(offset)); }
+FrontierNodes frontierNodes(uint offset) { return FrontierNodes(gFrBase + uint64_t(offset)); }
+FrontierPoints frontierPoint() { return FrontierPoints(gFrBase); }
+
+precise hreal addF(hreal a, hreal b) { return a + b; }
+precise hreal subF(hreal a, hreal b) { return a - b; }
+precise hreal mulF(hreal a, hreal b) { return a * b; }
+precise hreal divF(hreal a, hreal b) { return a / b; }
+
+void frontierAddCap(vec3 axis, float s0) {
+  precise float c0 = sqrt(1.0 - s0 * s0);
+  precise float sinA = s0 * gFs.capCosMargin - c0 * gFs.capSinMargin;
+  precise float cosA = c0 * gFs.capCosMargin + s0 * gFs.capSinMargin;
+  if (!(sinA > 0.0) || gFrCapCount >= uint(HT_MAX_CAPS)) return;  // the host refuses scenes with more
+  gFrCapAxis[gFrCapCount] = axis;
+  gFrCapSin[gFrCapCount] = sinA;
+  gFrCapCos[gFrCapCount] = cosA;
+  gFrCaps |= 1u << gFrCapCount;
+  ++gFrCapCount;
+}
+
+// occluders() and lightCaps, seen from the shadow rays' origin.
+void frontierCaps(vec3 position, vec3 normal) {
+  gFrCapCount = 0u;
+  gFrCaps = 0u;
+  if ((gFs.flags & HT_FRONTIER_VISIBILITY) == 0u) return;
+  precise vec3 origin = offsetRayOrigin(position, normal);
+  for (uint k = 0u; k < scene.sphereCount; ++k) {
+    GpuSphere sp = spheres[k];
+    precise vec3 d = sp.center - origin;
+    precise float dist = length3(d);
+    if (!(dist > 0.0)) continue;
+    precise vec3 unit = d / dist;
+    precise float ratio = sp.radius / dist;
+    frontierAddCap(normalize3(vec3(toHealpixFrame(unit))), min(1.0, ratio));
+  }
+  for (uint k = 0u; k < scene.planeCount; ++k) {
+    GpuPlane p = planes[k];
+    precise vec3 rel = origin - p.point;
+    float side = dot3(rel, p.normal);
+    vec3 below = side >= 0.0 ? -p.normal : p.normal;
+    frontierAddCap(normalize3(vec3(toHealpixFrame(below))), 1.0);
+  }
+}
+
+// A cap's thresholds at a level (LightCap::cosInside, cosOutside).
+precise float frontierCosInside(uint k, float cR, float sR) {
+  precise float inner = gFrCapSin[k] * cR - gFrCapCos[k] * sR;
+  precise float c = gFrCapCos[k] * cR + gFrCapSin[k] * sR;
+  return inner > 0.0 ? c : 2.0;
+}
+precise float frontierCosOutside(uint k, float cR, float sR) { return gFrCapCos[k] * cR - gFrCapSin[k] * sR; }
+
+// visibilityClass over the caps in `caps`: 0 inside one, 1 outside all, 2 partly covered.
+uint frontierClass(vec3 centre, uint level, uint caps) {
+  float cR = gFs.levelCosRadius[level], sR = gFs.levelSinRadius[level];
+  bool partial = false;
+  for (uint k = 0u; k < gFrCapCount; ++k) {
+    if (((caps >> k) & 1u) == 0u) continue;
+    float d = dot3(centre, gFrCapAxis[k]);
+    if (d >= frontierCosInside(k, cR, sR)) return 0u;
+    partial = partial || d > frontierCosOutside(k, cR, sR);
+  }
+  return partial ? 2u : 1u;
+}
+
+uint frontierColourBin(uint i) {
+  if ((gFs.flags & HT_FRONTIER_COLOUR_ORDER) == 0u) return 0u;
+  return (gFs.bins.v[i >> 2] >> (8u * (i & 3u))) & 0xFFu;
+}
+uint frontierFace(GpuFrontierNode nd) { return nd.node >> (2u * nd.level); }
+uint frontierSegment(GpuFrontierNode nd) {
+  return frontierColourBin(levelOffset(nd.level) + nd.node) * 12u + frontierFace(nd);
+}
+
+// ---------------------------------------------------------------- own table
+
+// The refinement's candidates: a node, its mass, and in `visibility` above
+// its class: bit 3 split, bits 4-6 its children's count, bits 8- the first.
+FrontierNodes gFrCand;
+FrontierReals gFrCandMass, gFrHeapKey;
+FrontierUints gFrHeapIndex;
+uint gFrCandCount, gFrHeapSize;
+
+bool frontierHeapLess(hreal ka, uint ia, hreal kb, uint ib) { return ka < kb || (ka == kb && ia < ib); }
+
+void frontierHeapPush(hreal key, uint index) {
+  uint i = gFrHeapSize++;
+  while (i > 0u) {
+    uint parent = (i - 1u) / 2u;
+    hreal pk = gFrHeapKey.v[parent];
+    uint pi = gFrHeapIndex.v[parent];
+    if (!frontierHeapLess(pk, pi, key, index)) break;
+    gFrHeapKey.v[i] = pk;
+    gFrHeapIndex.v[i] = pi;
+    i = parent;
+  }
+  gFrHeapKey.v[i] = key;
+  gFrHeapIndex.v[i] = index;
+}
+
+uint frontierHeapPop() {
+  uint top = gFrHeapIndex.v[0];
+  --gFrHeapSize;
+  hreal key = gFrHeapKey.v[gFrHeapSize];
+  uint index = gFrHeapIndex.v[gFrHeapSize];
+  uint i = 0u;
+  for (;;) {
+    uint c = 2u * i + 1u;
+    if (c >= gFrHeapSize) break;
+    if (c + 1u < gFrHeapSize &&
+        frontierHeapLess(gFrHeapKey.v[c], gFrHeapIndex.v[c], gFrHeapKey.v[c + 1u], gFrHeapIndex.v[c + 1u]))
+      ++c;
+    if (!frontierHeapLess(key, index, gFrHeapKey.v[c], gFrHeapIndex.v[c])) break;
+    gFrHeapKey.v[i] = gFrHeapKey.v[c];
+    gFrHeapIndex.v[i] = gFrHeapIndex.v[c];
+    i = c;
+  }
+  if (gFrHeapSize > 0u) {
+    gFrHeapKey.v[i] = key;
+    gFrHeapIndex.v[i] = index;
+  }
+  return top;
+}
+
+// refine's push with Frontier::build's factor.
+void frontierPush(uint level, uint node, uint parentClass, uint parent) {
+  uint i = levelOffset(level) + node;
+  float avg = treeAvg(i);
+  if (!(avg > 0.0)) return;
+  float bound = htBrdfBound(i);
+  if (!(bound > 0.0)) return;
+  vec3 centre = htCenter(i);
+  float vis = 1.0;
+  uint cls = parentClass;
+  if ((gFs.flags & HT_FRONTIER_VISIBILITY) == 0u) {
+    cls = 1u;
+  } else if (cls == 2u) {
+    cls = frontierClass(centre, level, gFrCaps);
+    if (cls == 0u) return;
+    if (cls == 2u) vis = gFs.partialVisibility;
+  }
+  float value = htBrdfValue(centre);
+  precise float c = max(value, gFs.brdfFloor * bound) * vis;
+  precise hreal energy = hreal(avg) * htPixelSolidAngle(level);
+  precise hreal spread = max(hreal(0.0), hreal(bound) - hreal(c));
+  precise hreal priority = level < ht.order ? energy * spread * spread / hreal(c) : hreal(0.0);
+  uint k = gFrCandCount++;
+  gFrCand.v[k] = GpuFrontierNode(level, node, bound, value, cls, parent);
+  gFrCandMass.v[k] = mulF(energy, hreal(c));
+  if (priority > 0.0) frontierHeapPush(priority, k);
+}
+
+// The table's order, prefix sums, coarse share and n_b once its nodes and
+// masses are in place along the nested index.
+void frontierFinishTable(uint count, uint n) {
+  FrontierUints next = gFrHeapIndex;  // free once refined
+  for (uint f = 0u; f <= 12u; ++f) gFrHeader.v[0].faceStart[f] = 0u;
+  for (uint s = 0u; s <= uint(HT_FRONTIER_SEGMENTS); ++s) gFrHeader.v[0].segStart[s] = 0u;
+  for (uint k = 0u; k < count; ++k) {
+    GpuFrontierNode nd = gFrNodes.v[k];
+    ++gFrHeader.v[0].faceStart[frontierFace(nd) + 1u];
+    ++gFrHeader.v[0].segStart[frontierSegment(nd) + 1u];
+  }
+  for (uint f = 0u; f < 12u; ++f) gFrHeader.v[0].faceStart[f + 1u] += gFrHeader.v[0].faceStart[f];
+  for (uint s = 0u; s < uint(HT_FRONTIER_SEGMENTS); ++s) {
+    gFrHeader.v[0].segStart[s + 1u] += gFrHeader.v[0].segStart[s];
+    next.v[s] = gFrHeader.v[0].segStart[s];
+  }
+  for (uint k = 0u; k < count; ++k) {
+    uint s = frontierSegment(gFrNodes.v[k]);
+    gFrOrder.v[next.v[s]] = k;
+    ++next.v[s];
+  }
+  hreal total = 0.0, coarse = 0.0;
+  for (uint i = 0u; i < count; ++i) {
+    uint k = gFrOrder.v[i];
+    GpuFrontierNode nd = gFrNodes.v[k];
+    hreal mass = gFrMass.v[k];
+    gFrCum.v[i] = total;
+    total = addF(total, mass);
+    precise float coarseAt = gFs.coarseRatio * nd.brdfCentre;
+    if (nd.brdfBound > coarseAt) coarse = addF(coarse, mass);
+  }
+  gFrCum.v[count] = total;
+  hreal share = total > 0.0 ? divF(coarse, total) : hreal(0.0);
+  // frontierBrdfCount: lround of share x n.
+  precise hreal x = min(share, hreal(gFs.maxBrdfShare)) * hreal(n);
+  hreal whole = floor(x);
+  uint nb = uint(whole) + (x - whole >= 0.5 ? 1u : 0u);
+  gFrHeader.v[0].brdfCount = min(nb, n > 0u ? n - 1u : 0u);
+}
+
+// Frontier::build's own table: refine from the twelve faces.
+void frontierRefine(uint n) {
+  gFrHeader = FrontierHeaders(gFrBase + uint64_t(gFs.offHeader));
+  gFrNodes = frontierNodes(gFs.offNodes);
+  gFrOrder = frontierUints(gFs.offOrder);
+  gFrMass = frontierReals(gFs.offMass);
+  gFrCum = frontierReals(gFs.offCum);
+  gFrCand = frontierNodes(gFs.offCandidates);
+  gFrCandMass = frontierReals(gFs.offCandidateMass);
+  gFrHeapKey = frontierReals(gFs.offHeapKey);
+  gFrHeapIndex = frontierUints(gFs.offHeapIndex);
+  gFrCandCount = 0u;
+  gFrHeapSize = 0u;
+  for (uint f = 0u; f < 12u; ++f) frontierPush(0u, f, 2u, kFrontierNone);
+  uint faces = gFrCandCount;
+  uint splits = 0u;
+  for (; splits < gFs.refinements && gFrHeapSize > 0u; ++splits) {
+    uint top = frontierHeapPop();
+    GpuFrontierNode nd = gFrCand.v[top];
+    uint first = gFrCandCount;
+    for (uint j = 0u; j < 4u; ++j) frontierPush(nd.level + 1u, 4u * nd.node + j, nd.visibility & 3u, top);
+    gFrCand.v[top].visibility = (nd.visibility & 3u) | 8u | ((gFrCandCount - first) << 4) | (first << 8);
+  }
+  // The unsplit candidates, depth first: the nested index's order.
+  uint count = 0u;
+  uint i = 0u;
+  bool more = faces > 0u;
+  while (more) {
+    GpuFrontierNode c = gFrCand.v[i];
+    uint children = (c.visibility >> 4) & 7u;
+    if ((c.visibility & 8u) != 0u && children > 0u) {
+      i = c.visibility >> 8;
+      continue;
+    }
+    if ((c.visibility & 8u) == 0u) {
+      gFrNodes.v[count] = GpuFrontierNode(c.level, c.node, c.brdfBound, c.brdfCentre, c.visibility & 3u, 0u);
+      gFrMass.v[count] = gFrCandMass.v[i];
+      ++count;
+    }
+    for (;;) {
+      uint parent = gFrCand.v[i].link;
+      uint end = faces;
+      if (parent != kFrontierNone) {
+        uint pv = gFrCand.v[parent].visibility;
+        end = (pv >> 8) + ((pv >> 4) & 7u);
+      }
+      if (i + 1u < end) {
+        ++i;
+        break;
+      }
+      if (parent == kFrontierNone) {
+        more = false;
+        break;
+      }
+      i = parent;
+    }
+  }
+  gFrHeader.v[0].count = count;
+  gFrHeader.v[0].splits = splits;
+  gFrHeader.v[0].nodeBase = 0u;
+  gFrHeader.v[0].cumBase = 0u;
+  gFrHeader.v[0].pad = 0u;
+  frontierFinishTable(count, n);
+}
+
+// ---------------------------------------------------------------- shared table
+
+void frontierUseShared(uint t) {
+  FrontierSceneRef s = scene.frontier;
+  gFrHeader = FrontierHeaders(uint64_t(s.f.sharedHeaders) + uint64_t(t) * uint64_t(4 * (HT_FRONTIER_SEGMENTS + 20)));
+  uint nodeBase = gFrHeader.v[0].nodeBase, cumBase = gFrHeader.v[0].cumBase;
+  gFrNodes = FrontierNodes(uint64_t(s.f.sharedNodes) + uint64_t(nodeBase) * 24ul);
+  gFrOrder = FrontierUints(uint64_t(s.f.sharedOrder) + uint64_t(nodeBase) * 4ul);
+#if HT_FP64
+  const uint64_t realBytes = 8ul;
+#else
+  const uint64_t realBytes = 4ul;
+#endif
+  gFrMass = FrontierReals(uint64_t(s.f.sharedMass) + uint64_t(nodeBase) * realBytes);
+  gFrCum = FrontierReals(uint64_t(s.f.sharedCum) + uint64_t(cumBase) * realBytes);
+}
+
+// The shared table of a flat Lambert point's normal, or kFrontierNone.
+uint frontierSharedTable() {
+  for (uint t = 0u; t < gFs.sharedCount; ++t)
+    if (gFs.sharedNormal[t] == ht.n) return t;
+#if !HT_FP64
+  // The float shader's HEALPix frame rounds otherwise than the host's.
+  for (uint t = 0u; t < gFs.sharedCount; ++t)
+    if (dot3(gFs.sharedNormal[t], ht.n) > 0.99999) return t;
+#endif
+  return kFrontierNone;
+}
+
+// Frontier::build on a shared table: the point's caps (less its own
+// plane's) on the faces they reach.
+void frontierApplyCaps() {
+  for (uint k = 0u; k < gFrCapCount; ++k)
+    if (dot3(gFrCapAxis[k], ht.n) < -0.9999) gFrCaps &= ~(1u << k);
+  float cR = gFs.levelCosRadius[0], sR = gFs.levelSinRadius[0];
+  gFrTouched = 0u;
+  for (uint f = 0u; f < 12u; ++f) {
+    uint faceCaps = 0u;
+    vec3 centre = htCenter(f);
+    for (uint k = 0u; k < gFrCapCount; ++k)
+      if (((gFrCaps >> k) & 1u) != 0u && dot3(centre, gFrCapAxis[k]) > frontierCosOutside(k, cR, sR))
+        faceCaps |= 1u << k;
+    if (faceCaps == 0u) continue;
+    gFrTouched |= 1u << f;
+    for (uint k = gFrHeader.v[0].faceStart[f]; k < gFrHeader.v[0].faceStart[f + 1u]; ++k) {
+      GpuFrontierNode nd = gFrNodes.v[k];
+      uint cls = frontierClass(htCenter(levelOffset(nd.level) + nd.node), nd.level, faceCaps);
+      hreal mass = gFrMass.v[k];
+      gFrPointMass.v[k] = cls == 0u ? hreal(0.0) : cls == 2u ? mulF(mass, hreal(gFs.partialVisibility)) : mass;
+      gFrPointClass.v[k] = cls;
+    }
+    for (uint bin = 0u; bin < uint(HT_FRONTIER_SEGMENTS) / 12u; ++bin) {
+      uint seg = bin * 12u + f;
+      hreal acc = 0.0;
+      for (uint i = gFrHeader.v[0].segStart[seg]; i < gFrHeader.v[0].segStart[seg + 1u]; ++i) {
+        gFrPointCum.v[i] = acc;
+        acc = addF(acc, gFrPointMass.v[gFrOrder.v[i]]);
+      }
+    }
+  }
+}
+
+// ---------------------------------------------------------------- sampling
+
+bool frontierTouched(GpuFrontierNode nd) { return ((gFrTouched >> frontierFace(nd)) & 1u) != 0u; }
+hreal frontierMass(uint k) { return frontierTouched(gFrNodes.v[k]) ? gFrPointMass.v[k] : gFrMass.v[k]; }
+uint frontierVisibility(uint k) {
+  GpuFrontierNode nd = gFrNodes.v[k];
+  return frontierTouched(nd) ? gFrPointClass.v[k] : nd.visibility;
+}
+
+// The segments' masses before each, and the total.
+void frontierSegments() {
+  hreal total = 0.0;
+  for (uint seg = 0u; seg < uint(HT_FRONTIER_SEGMENTS); ++seg) {
+    gFrSegCum.v[seg] = total;
+    uint first = gFrHeader.v[0].segStart[seg], end = gFrHeader.v[0].segStart[seg + 1u];
+    if (first == end) continue;
+    if (((gFrTouched >> (seg % 12u)) & 1u) != 0u)
+      total = addF(total, addF(gFrPointCum.v[end - 1u], gFrPointMass.v[gFrOrder.v[end - 1u]]));
+    else
+      total = addF(total, subF(gFrCum.v[end], gFrCum.v[first]));
+  }
+  gFrSegCum.v[HT_FRONTIER_SEGMENTS] = total;
+  gFrTotal = total;
+}
+
+// Frontier::children: the four children's weights and classes.
+void frontierChildren(uint level, uint parent, uint parentClass, out hreal w[4], out uint cls[4]) {
+  uint first = levelOffset(level) + 4u * parent;
+  for (uint j = 0u; j < 4u; ++j) {
+    w[j] = hreal(treeAvg(first + j));
+    cls[j] = parentClass;
+  }
+  if (level > gFs.productLevel) return;
+  hreal b[4];
+  hreal top = 0.0;
+  for (uint j = 0u; j < 4u; ++j) {
+    vec3 centre = htCenter(first + j);
+    if (parentClass == 2u) cls[j] = frontierClass(centre, level, gFrCaps);
+    if (w[j] > 0.0 && cls[j] != 0u)
+      b[j] = gFrLambert ? hreal(max(dot3(centre, ht.n), 0.0)) : hreal(htBrdfValue(centre));
+    else
+      b[j] = 0.0;
+    top = max(top, b[j]);
+  }
+  hreal p[4];
+  for (uint j = 0u; j < 4u; ++j) {
+    hreal v = cls[j] == 0u ? hreal(0.0) : cls[j] == 2u ? hreal(gFs.partialVisibility) : hreal(1.0);
+    hreal factor = top > 0.0 ? max(b[j], mulF(hreal(gFs.brdfFloor), top)) : hreal(1.0);
+    p[j] = mulF(mulF(w[j], factor), v);
+  }
+  if (addF(addF(addF(p[0], p[1]), p[2]), p[3]) > 0.0)
+    for (uint j = 0u; j < 4u; ++j) w[j] = p[j];
+}
+
+uint frontierFirstLeaf(GpuFrontierNode nd) { return nd.node << (2u * (ht.order - nd.level)); }
+
+// Frontier::nodeOfLeaf: the node holding `leaf`, or the table's size.
+uint frontierNodeOfLeaf(uint leaf) {
+  uint count = gFrHeader.v[0].count;
+  uint first = 0u, len = count;  // std::upper_bound on the first leaves
+  while (len > 0u) {
+    uint step = len / 2u;
+    if (!(leaf < frontierFirstLeaf(gFrNodes.v[first + step]))) {
+      first += step + 1u;
+      len -= step + 1u;
+    } else {
+      len = step;
+    }
+  }
+  if (first == 0u) return count;
+  GpuFrontierNode nd = gFrNodes.v[first - 1u];
+  uint leaves = 1u << (2u * (ht.order - nd.level));
+  return leaf - frontierFirstLeaf(nd) < leaves ? first - 1u : count;
+}
+
+// Frontier::pdf.
+hreal frontierPdf(uint leaf) {
+  uint k = frontierNodeOfLeaf(leaf);
+  if (k >= gFrHeader.v[0].count) return 0.0;
+  hreal mass = frontierMass(k);
+  if (!(mass > 0.0)) return 0.0;
+  GpuFrontierNode nd = gFrNodes.v[k];
+  hreal p = divF(mass, gFrTotal);
+  uint cls = frontierVisibility(k);
+  for (uint level = nd.level + 1u; level <= ht.order; ++level) {
+    uint node = leaf >> (2u * (ht.order - level));
+    hreal w[4];
+    uint c[4];
+    frontierChildren(level, node >> 2, cls, w, c);
+    hreal sum = addF(addF(addF(w[0], w[1]), w[2]), w[3]);
+    p = mulF(p, divF(w[node & 3u], sum));
+    cls = c[node & 3u];
+  }
+  return divF(p, envPixelSolidAngle());
+}
+
+// The CDF position's "mass before" of Frontier::sample.
+hreal frontierBefore(bool own, uint first, uint i) {
+  return own ? gFrPointCum.v[i] : subF(gFrCum.v[i], gFrCum.v[first]);
+}
+
+// Frontier::sample: the leaf of the point x of the mass CDF, its direction
+// (HEALPix frame) at `jitter` inside it and its density.
+uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
+  hreal target = mulF(x, gFrTotal);
+  uint above = 1u, len = uint(HT_FRONTIER_SEGMENTS);  // std::upper_bound over the segments' starts
+  while (len > 0u) {
+    uint step = len / 2u;
+    if (!(target < gFrSegCum.v[above + step])) {
+      above += step + 1u;
+      len -= step + 1u;
+    } else {
+      len = step;
+    }
+  }
+  uint seg = min(above - 1u, uint(HT_FRONTIER_SEGMENTS) - 1u);
+  while (seg > 0u && !(gFrSegCum.v[seg + 1u] > gFrSegCum.v[seg])) --seg;
+  bool own = ((gFrTouched >> (seg % 12u)) & 1u) != 0u;
+  uint first = gFrHeader.v[0].segStart[seg], end = gFrHeader.v[0].segStart[seg + 1u];
+  hreal r = subF(target, gFrSegCum.v[seg]);
+  uint lo = first, hi = end;
+  while (hi - lo > 1u) {
+    uint mid = (lo + hi) / 2u;
+    if (frontierBefore(own, first, mid) <= r)
+      lo = mid;
+    else
+      hi = mid;
+  }
+  uint i = lo;
+  while (i > first && !(frontierMass(gFrOrder.v[i]) > 0.0)) --i;
+  while (!(frontierMass(gFrOrder.v[i]) > 0.0)) ++i;
+  uint k = gFrOrder.v[i];
+  hreal mass = frontierMass(k);
+  hreal t = clamp(divF(subF(r, frontierBefore(own, first, i)), mass), hreal(0.0), hreal(1.0));
+  hreal p = divF(mass, gFrTotal);
+  GpuFrontierNode nd = gFrNodes.v[k];
+  uint node = nd.node;
+  uint cls = frontierVisibility(k);
+  for (uint level = nd.level + 1u; level <= ht.order; ++level) {
+    hreal a[4];
+    uint c[4];
+    frontierChildren(level, node, cls, a, c);
+    hreal sum = addF(addF(addF(a[0], a[1]), a[2]), a[3]);
+    hreal want = mulF(t, sum);
+    hreal acc = 0.0;
+    uint j = 0u;
+    while (j < 3u && (a[j] <= 0.0 || addF(acc, a[j]) <= want)) {
+      acc = addF(acc, a[j]);
+      ++j;
+    }
+    while (a[j] <= 0.0) --j;  // the last child with weight
+    t = clamp(divF(subF(want, acc), a[j]), hreal(0.0), hreal(1.0));
+    p = mulF(p, divF(a[j], sum));
+    node = 4u * node + j;
+    cls = c[j];
+  }
+  pdf = divF(p, envPixelSolidAngle());
+  dirHp = pixToVec(ht.order, node, jitter.x, jitter.y);
+  return node;
+}
+
+// ---------------------------------------------------------------- estimate
+
+// Points the globals at the pixel's table and scratch; false for a
+// point with nothing to sample.
+void frontierBind(uint slot) {
+  gFrBase = pc.frontierScratch + uint64_t(slot) * uint64_t(gFs.pixelBytes);
+  gFrPointMass = frontierReals(gFs.offPointMass);
+  gFrPointCum = frontierReals(gFs.offPointCum);
+  gFrPointClass = frontierUints(gFs.offPointClass);
+  gFrSegCum = frontierReals(gFs.offSegCum);
+}
+
+// The first batch: the point's table and everything the later batches
+// read. False when there is nothing to sample.
+bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bool planar, uint slot, uint n,
+                   inout uint rng, inout uint htNodes) {
+  if (scene.envHasLight == 0u || n == 0u) return false;
+  htInit(position, normal, wo, material);
+  frontierCaps(position, normal);
+  frontierBind(slot);
+  gFrLambert = material.type == HT_MATERIAL_LAMBERT;
+  gFrTouched = 0u;
+  uint table = planar && gFrLambert && ht.woLocal.z > 0.0 ? frontierSharedTable() : kFrontierNone;
+  if (table != kFrontierNone) {
+    frontierUseShared(table);
+    frontierApplyCaps();
+  } else {
+    frontierRefine(n);
+    htNodes += 12u + 4u * gFrHeader.v[0].splits;
+  }
+  frontierSegments();
+  if (!(gFrTotal > 0.0)) return false;
+  GpuFrontierPoint pt;
+  pt.table = table;
+  pt.touched = gFrTouched;
+  pt.nb = gFrHeader.v[0].brdfCount;
+  pt.nt = n - pt.nb;
+  pt.total = hrealToBits(gFrTotal);
+  pt.u = hrealToBits(hreal(rngNext(rng)));
+  frontierPoint().v[0] = pt;
+  return true;
+}
+
+// A later batch: the point as the first left it.
+GpuFrontierPoint frontierResume(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, uint slot) {
+  htInit(position, normal, wo, material);
+  frontierCaps(position, normal);
+  frontierBind(slot);
+  gFrLambert = material.type == HT_MATERIAL_LAMBERT;
+  GpuFrontierPoint pt = frontierPoint().v[0];
+  if (pt.table != kFrontierNone) {
+    frontierUseShared(pt.table);
+    for (uint k = 0u; k < gFrCapCount; ++k)
+      if (dot3(gFrCapAxis[k], ht.n) < -0.9999) gFrCaps &= ~(1u << k);
+  } else {
+    gFrHeader = FrontierHeaders(gFrBase + uint64_t(gFs.offHeader));
+    gFrNodes = frontierNodes(gFs.offNodes);
+    gFrOrder = frontierUints(gFs.offOrder);
+    gFrMass = frontierReals(gFs.offMass);
+    gFrCum = frontierReals(gFs.offCum);
+  }
+  gFrTouched = pt.touched;
+  gFrTotal = hrealFromBits(pt.total);
+  return pt;
+}
+
+// Directions [begin, end) of the n: the table's first, then the BRDF's,
+// each weighted by the balance heuristic over the two counts.
+uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inout Sampler smp, inout accvec3 sum,
+                     inout uint directions) {
+  hreal u = hrealFromBits(pt.u);
+  hreal nt = hreal(pt.nt), nb = hreal(pt.nb);
+  uint j = begin;
+  for (; j < end; ++j) {
+    directions += 1u;
+    vec3 wi;
+    uint leaf;
+    hreal ptable, pb;  // the two techniques' densities
+    if (j < pt.nt) {
+      samplerStart(smp, j);
+      precise hreal x = (hreal(j) + u) / nt;
+      vec2 jitter = samplerNext2D(smp);
+      hvec3 hp;
+      leaf = frontierSample(x, jitter, hp, ptable);
+      wi = fromHealpixFrame(hp);
+      pb = pt.nb > 0u ? hreal(bsdfPdf(sh.material, sh.woLocal, toLocal(sh.frame, wi))) : hreal(0.0);
+    } else {
+      samplerStart(smp, j - pt.nt);
+      smp.dimension = 1u;
+      vec3 local = sampleBsdf(sh.material, sh.woLocal, samplerNext2D(smp));
+      float pdf = bsdfPdf(sh.material, sh.woLocal, local);
+      if (!(pdf > 0.0)) continue;
+      pb = hreal(pdf);
+      wi = toWorld(sh.frame, local);
+      leaf = envPixelOf(wi);
+      ptable = frontierPdf(leaf);
+    }
+    vec3 f = reflected(sh, wi, envRadiance(leaf));
+    if (f == vec3(0.0)) continue;
+    precise hreal denom = nt * ptable + nb * pb;
+    precise accvec3 total = sum + accvec3(f) / denom;
+    sum = total;
+  }
+  return j - begin;
+}
+
+#endif
