@@ -3,7 +3,9 @@
 // seed (HT_FP64; the fp32 shader keeps the masses in float).
 //
 // A point's own table is refined in its scratch (GpuFrontierScene's
-// offsets): candidates and a binary heap on (priority, index), whose largest
+// offsets), laid out element by element with the tile's pixels side by side
+// (element k of pixel p at k x pixels + p), so that neighbouring invocations
+// read neighbouring words: candidates and a binary heap on (priority, index), whose largest
 // element is unique, so it splits the nodes std::pop_heap would, in the same
 // order. The nodes the refinement leaves unsplit are read out depth first,
 // which is the nested index's order the CPU sorts them into. A flat Lambert
@@ -20,12 +22,18 @@
 #define gFs scene.frontier.f
 #define kFrontierNone 0xFFFFFFFFu
 
-// The pixel's scratch, and the table it samples.
+// The pixel's scratch: the tile's pixels (the stride of its arrays) and
+// its place among them.
 uint64_t gFrBase;
-FrontierHeaders gFrHeader;
+uint gFrPixels, gFrSlot;
+// The table it samples: its header (GpuFrontierHeader's words), nodes,
+// order, masses and prefix sums, each element gFrStride apart (the tile's
+// pixels for an own table, 1 for a shared one).
+FrontierUints gFrHeader;
 FrontierNodes gFrNodes;
 FrontierUints gFrOrder;
 FrontierReals gFrMass, gFrCum;
+uint gFrStride;
 // The point's masses, classes and prefix sums over a shared table on the
 // faces in gFrTouched, and the mass of the segments before each.
 FrontierReals gFrPointMass, gFrPointCum, gFrSegCum;
@@ -34,7 +42,7 @@ uint gFrTouched;
 hreal gFrTotal;
 bool gFrLambert;
 
-// lightCaps: per cap its axis and the sine and cosine of its step-angle
+// lightCaps: per cap its axis and the sine and cosine of its half-angle
 // less the margin. gFrCaps: the caps the point applies (bits).
 uint gFrCapCount;
 vec3 gFrCapAxis[HT_MAX_CAPS];
@@ -42,10 +50,39 @@ float gFrCapSin[HT_MAX_CAPS];
 float gFrCapCos[HT_MAX_CAPS];
 uint gFrCaps;
 
-FrontierReals frontierReals(uint offset) { return FrontierReals(gFrBase + uint64_t(offset)); }
-FrontierUints frontierUints(uint offset) { return FrontierUints(gFrBase + uint64_t(offset)); }
-FrontierNodes frontierNodes(uint offset) { return FrontierNodes(gFrBase + uint64_t(offset)); }
-FrontierPoints frontierPoint() { return FrontierPoints(gFrBase); }
+// The pixel's first element of the scratch array at `offset` (bytes per
+// pixel before it), of elements of `size` bytes.
+uint64_t frontierArray(uint offset, uint size) {
+  return gFrBase + uint64_t(offset) * uint64_t(gFrPixels) + uint64_t(gFrSlot) * uint64_t(size);
+}
+#if HT_FP64
+#define kFrontierRealBytes 8u
+#else
+#define kFrontierRealBytes 4u
+#endif
+FrontierReals frontierReals(uint offset) { return FrontierReals(frontierArray(offset, kFrontierRealBytes)); }
+FrontierUints frontierUints(uint offset) { return FrontierUints(frontierArray(offset, 4u)); }
+FrontierNodes frontierNodes(uint offset) { return FrontierNodes(frontierArray(offset, 24u)); }
+FrontierPoints frontierPoint() { return FrontierPoints(gFrBase + uint64_t(gFrSlot) * 32ul); }
+
+// The table's header words (GpuFrontierHeader) and arrays.
+#define kFrontierFaceStart (HT_FRONTIER_SEGMENTS + 1)
+#define kFrontierCount (kFrontierFaceStart + 13)
+#define kFrontierSplits (kFrontierCount + 1)
+#define kFrontierBrdfCount (kFrontierCount + 2)
+#define kFrontierNodeBase (kFrontierCount + 3)
+#define kFrontierCumBase (kFrontierCount + 4)
+uint tableWord(uint w) { return gFrHeader.v[w * gFrStride]; }
+void setTableWord(uint w, uint v) { gFrHeader.v[w * gFrStride] = v; }
+uint segStart(uint seg) { return tableWord(seg); }
+uint faceStart(uint f) { return tableWord(kFrontierFaceStart + f); }
+uint tableCount() { return tableWord(kFrontierCount); }
+GpuFrontierNode tableNode(uint k) { return gFrNodes.v[k * gFrStride]; }
+uint tableOrder(uint i) { return gFrOrder.v[i * gFrStride]; }
+hreal tableMass(uint k) { return gFrMass.v[k * gFrStride]; }
+hreal tableCum(uint i) { return gFrCum.v[i * gFrStride]; }
+// The point's arrays (always the tile's pixels apart).
+#define pointAt(i) ((i) * gFrPixels)
 
 precise hreal addF(hreal a, hreal b) { return a + b; }
 precise hreal subF(hreal a, hreal b) { return a - b; }
@@ -133,37 +170,37 @@ void frontierHeapPush(hreal key, uint index) {
   uint i = gFrHeapSize++;
   while (i > 0u) {
     uint parent = (i - 1u) / 2u;
-    hreal pk = gFrHeapKey.v[parent];
-    uint pi = gFrHeapIndex.v[parent];
+    hreal pk = gFrHeapKey.v[(parent) * gFrPixels];
+    uint pi = gFrHeapIndex.v[(parent) * gFrPixels];
     if (!frontierHeapLess(pk, pi, key, index)) break;
-    gFrHeapKey.v[i] = pk;
-    gFrHeapIndex.v[i] = pi;
+    gFrHeapKey.v[(i) * gFrPixels] = pk;
+    gFrHeapIndex.v[(i) * gFrPixels] = pi;
     i = parent;
   }
-  gFrHeapKey.v[i] = key;
-  gFrHeapIndex.v[i] = index;
+  gFrHeapKey.v[(i) * gFrPixels] = key;
+  gFrHeapIndex.v[(i) * gFrPixels] = index;
 }
 
 uint frontierHeapPop() {
-  uint top = gFrHeapIndex.v[0];
+  uint top = gFrHeapIndex.v[(0) * gFrPixels];
   --gFrHeapSize;
-  hreal key = gFrHeapKey.v[gFrHeapSize];
-  uint index = gFrHeapIndex.v[gFrHeapSize];
+  hreal key = gFrHeapKey.v[(gFrHeapSize) * gFrPixels];
+  uint index = gFrHeapIndex.v[(gFrHeapSize) * gFrPixels];
   uint i = 0u;
   for (;;) {
     uint c = 2u * i + 1u;
     if (c >= gFrHeapSize) break;
     if (c + 1u < gFrHeapSize &&
-        frontierHeapLess(gFrHeapKey.v[c], gFrHeapIndex.v[c], gFrHeapKey.v[c + 1u], gFrHeapIndex.v[c + 1u]))
+        frontierHeapLess(gFrHeapKey.v[(c) * gFrPixels], gFrHeapIndex.v[(c) * gFrPixels], gFrHeapKey.v[(c + 1u) * gFrPixels], gFrHeapIndex.v[(c + 1u) * gFrPixels]))
       ++c;
-    if (!frontierHeapLess(key, index, gFrHeapKey.v[c], gFrHeapIndex.v[c])) break;
-    gFrHeapKey.v[i] = gFrHeapKey.v[c];
-    gFrHeapIndex.v[i] = gFrHeapIndex.v[c];
+    if (!frontierHeapLess(key, index, gFrHeapKey.v[(c) * gFrPixels], gFrHeapIndex.v[(c) * gFrPixels])) break;
+    gFrHeapKey.v[(i) * gFrPixels] = gFrHeapKey.v[(c) * gFrPixels];
+    gFrHeapIndex.v[(i) * gFrPixels] = gFrHeapIndex.v[(c) * gFrPixels];
     i = c;
   }
   if (gFrHeapSize > 0u) {
-    gFrHeapKey.v[i] = key;
-    gFrHeapIndex.v[i] = index;
+    gFrHeapKey.v[(i) * gFrPixels] = key;
+    gFrHeapIndex.v[(i) * gFrPixels] = index;
   }
   return top;
 }
@@ -191,8 +228,8 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
   precise hreal spread = max(hreal(0.0), hreal(bound) - hreal(c));
   precise hreal priority = level < ht.order ? energy * spread * spread / hreal(c) : hreal(0.0);
   uint k = gFrCandCount++;
-  gFrCand.v[k] = GpuFrontierNode(level, node, bound, value, cls, parent);
-  gFrCandMass.v[k] = mulF(energy, hreal(c));
+  gFrCand.v[(k) * gFrPixels] = GpuFrontierNode(level, node, bound, value, cls, parent);
+  gFrCandMass.v[(k) * gFrPixels] = mulF(energy, hreal(c));
   if (priority > 0.0) frontierHeapPush(priority, k);
 }
 
@@ -200,49 +237,55 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
 // masses are in place along the nested index.
 void frontierFinishTable(uint count, uint n) {
   FrontierUints next = gFrHeapIndex;  // free once refined
-  for (uint f = 0u; f <= 12u; ++f) gFrHeader.v[0].faceStart[f] = 0u;
-  for (uint s = 0u; s <= uint(HT_FRONTIER_SEGMENTS); ++s) gFrHeader.v[0].segStart[s] = 0u;
+  for (uint f = 0u; f <= 12u; ++f) gFrHeader.v[(kFrontierFaceStart + f) * gFrStride] = 0u;
+  for (uint s = 0u; s <= uint(HT_FRONTIER_SEGMENTS); ++s) gFrHeader.v[(s) * gFrStride] = 0u;
   for (uint k = 0u; k < count; ++k) {
-    GpuFrontierNode nd = gFrNodes.v[k];
-    ++gFrHeader.v[0].faceStart[frontierFace(nd) + 1u];
-    ++gFrHeader.v[0].segStart[frontierSegment(nd) + 1u];
+    GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
+    ++gFrHeader.v[(kFrontierFaceStart + frontierFace(nd) + 1u) * gFrStride];
+    ++gFrHeader.v[(frontierSegment(nd) + 1u) * gFrStride];
   }
-  for (uint f = 0u; f < 12u; ++f) gFrHeader.v[0].faceStart[f + 1u] += gFrHeader.v[0].faceStart[f];
+  for (uint f = 0u; f < 12u; ++f) gFrHeader.v[(kFrontierFaceStart + f + 1u) * gFrStride] += gFrHeader.v[(kFrontierFaceStart + f) * gFrStride];
   for (uint s = 0u; s < uint(HT_FRONTIER_SEGMENTS); ++s) {
-    gFrHeader.v[0].segStart[s + 1u] += gFrHeader.v[0].segStart[s];
-    next.v[s] = gFrHeader.v[0].segStart[s];
+    gFrHeader.v[(s + 1u) * gFrStride] += gFrHeader.v[(s) * gFrStride];
+    next.v[(s) * gFrPixels] = gFrHeader.v[(s) * gFrStride];
   }
   for (uint k = 0u; k < count; ++k) {
-    uint s = frontierSegment(gFrNodes.v[k]);
-    gFrOrder.v[next.v[s]] = k;
-    ++next.v[s];
+    uint s = frontierSegment(gFrNodes.v[(k) * gFrStride]);
+    gFrOrder.v[(next.v[(s) * gFrPixels]) * gFrStride] = k;
+    ++next.v[(s) * gFrPixels];
   }
   hreal total = 0.0, coarse = 0.0;
   for (uint i = 0u; i < count; ++i) {
-    uint k = gFrOrder.v[i];
-    GpuFrontierNode nd = gFrNodes.v[k];
-    hreal mass = gFrMass.v[k];
-    gFrCum.v[i] = total;
+    uint k = gFrOrder.v[(i) * gFrStride];
+    GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
+    hreal mass = gFrMass.v[(k) * gFrStride];
+    gFrCum.v[(i) * gFrStride] = total;
     total = addF(total, mass);
     precise float coarseAt = gFs.coarseRatio * nd.brdfCentre;
     if (nd.brdfBound > coarseAt) coarse = addF(coarse, mass);
   }
-  gFrCum.v[count] = total;
+  gFrCum.v[(count) * gFrStride] = total;
   hreal share = total > 0.0 ? divF(coarse, total) : hreal(0.0);
   // frontierBrdfCount: lround of share x n.
   precise hreal x = min(share, hreal(gFs.maxBrdfShare)) * hreal(n);
   hreal whole = floor(x);
   uint nb = uint(whole) + (x - whole >= 0.5 ? 1u : 0u);
-  gFrHeader.v[0].brdfCount = min(nb, n > 0u ? n - 1u : 0u);
+  gFrHeader.v[kFrontierBrdfCount * gFrStride] = min(nb, n > 0u ? n - 1u : 0u);
 }
 
-// Frontier::build's own table: refine from the twelve faces.
-void frontierRefine(uint n) {
-  gFrHeader = FrontierHeaders(gFrBase + uint64_t(gFs.offHeader));
+// The pixel's own table.
+void frontierUseOwn() {
+  gFrStride = gFrPixels;
+  gFrHeader = frontierUints(gFs.offHeader);
   gFrNodes = frontierNodes(gFs.offNodes);
   gFrOrder = frontierUints(gFs.offOrder);
   gFrMass = frontierReals(gFs.offMass);
   gFrCum = frontierReals(gFs.offCum);
+}
+
+// Frontier::build's own table: refine from the twelve faces.
+void frontierRefine(uint n) {
+  frontierUseOwn();
   gFrCand = frontierNodes(gFs.offCandidates);
   gFrCandMass = frontierReals(gFs.offCandidateMass);
   gFrHeapKey = frontierReals(gFs.offHeapKey);
@@ -254,32 +297,32 @@ void frontierRefine(uint n) {
   uint splits = 0u;
   for (; splits < gFs.refinements && gFrHeapSize > 0u; ++splits) {
     uint top = frontierHeapPop();
-    GpuFrontierNode nd = gFrCand.v[top];
+    GpuFrontierNode nd = gFrCand.v[(top) * gFrPixels];
     uint first = gFrCandCount;
     for (uint j = 0u; j < 4u; ++j) frontierPush(nd.level + 1u, 4u * nd.node + j, nd.visibility & 3u, top);
-    gFrCand.v[top].visibility = (nd.visibility & 3u) | 8u | ((gFrCandCount - first) << 4) | (first << 8);
+    gFrCand.v[(top) * gFrPixels].visibility = (nd.visibility & 3u) | 8u | ((gFrCandCount - first) << 4) | (first << 8);
   }
   // The unsplit candidates, depth first: the nested index's order.
   uint count = 0u;
   uint i = 0u;
   bool more = faces > 0u;
   while (more) {
-    GpuFrontierNode c = gFrCand.v[i];
+    GpuFrontierNode c = gFrCand.v[(i) * gFrPixels];
     uint children = (c.visibility >> 4) & 7u;
     if ((c.visibility & 8u) != 0u && children > 0u) {
       i = c.visibility >> 8;
       continue;
     }
     if ((c.visibility & 8u) == 0u) {
-      gFrNodes.v[count] = GpuFrontierNode(c.level, c.node, c.brdfBound, c.brdfCentre, c.visibility & 3u, 0u);
-      gFrMass.v[count] = gFrCandMass.v[i];
+      gFrNodes.v[(count) * gFrStride] = GpuFrontierNode(c.level, c.node, c.brdfBound, c.brdfCentre, c.visibility & 3u, 0u);
+      gFrMass.v[(count) * gFrStride] = gFrCandMass.v[(i) * gFrPixels];
       ++count;
     }
     for (;;) {
-      uint parent = gFrCand.v[i].link;
+      uint parent = gFrCand.v[(i) * gFrPixels].link;
       uint end = faces;
       if (parent != kFrontierNone) {
-        uint pv = gFrCand.v[parent].visibility;
+        uint pv = gFrCand.v[(parent) * gFrPixels].visibility;
         end = (pv >> 8) + ((pv >> 4) & 7u);
       }
       if (i + 1u < end) {
@@ -293,11 +336,10 @@ void frontierRefine(uint n) {
       i = parent;
     }
   }
-  gFrHeader.v[0].count = count;
-  gFrHeader.v[0].splits = splits;
-  gFrHeader.v[0].nodeBase = 0u;
-  gFrHeader.v[0].cumBase = 0u;
-  gFrHeader.v[0].pad = 0u;
+  gFrHeader.v[kFrontierCount * gFrStride] = count;
+  gFrHeader.v[kFrontierSplits * gFrStride] = splits;
+  gFrHeader.v[kFrontierNodeBase * gFrStride] = 0u;
+  gFrHeader.v[kFrontierCumBase * gFrStride] = 0u;
   frontierFinishTable(count, n);
 }
 
@@ -305,17 +347,13 @@ void frontierRefine(uint n) {
 
 void frontierUseShared(uint t) {
   FrontierSceneRef s = scene.frontier;
-  gFrHeader = FrontierHeaders(uint64_t(s.f.sharedHeaders) + uint64_t(t) * uint64_t(4 * (HT_FRONTIER_SEGMENTS + 20)));
-  uint nodeBase = gFrHeader.v[0].nodeBase, cumBase = gFrHeader.v[0].cumBase;
+  gFrStride = 1u;
+  gFrHeader = FrontierUints(uint64_t(s.f.sharedHeaders) + uint64_t(t) * uint64_t(4 * (HT_FRONTIER_SEGMENTS + 20)));
+  uint nodeBase = gFrHeader.v[kFrontierNodeBase * gFrStride], cumBase = gFrHeader.v[kFrontierCumBase * gFrStride];
   gFrNodes = FrontierNodes(uint64_t(s.f.sharedNodes) + uint64_t(nodeBase) * 24ul);
   gFrOrder = FrontierUints(uint64_t(s.f.sharedOrder) + uint64_t(nodeBase) * 4ul);
-#if HT_FP64
-  const uint64_t realBytes = 8ul;
-#else
-  const uint64_t realBytes = 4ul;
-#endif
-  gFrMass = FrontierReals(uint64_t(s.f.sharedMass) + uint64_t(nodeBase) * realBytes);
-  gFrCum = FrontierReals(uint64_t(s.f.sharedCum) + uint64_t(cumBase) * realBytes);
+  gFrMass = FrontierReals(uint64_t(s.f.sharedMass) + uint64_t(nodeBase) * uint64_t(kFrontierRealBytes));
+  gFrCum = FrontierReals(uint64_t(s.f.sharedCum) + uint64_t(cumBase) * uint64_t(kFrontierRealBytes));
 }
 
 // The shared table of a flat Lambert point's normal, or kFrontierNone.
@@ -345,19 +383,19 @@ void frontierApplyCaps() {
         faceCaps |= 1u << k;
     if (faceCaps == 0u) continue;
     gFrTouched |= 1u << f;
-    for (uint k = gFrHeader.v[0].faceStart[f]; k < gFrHeader.v[0].faceStart[f + 1u]; ++k) {
-      GpuFrontierNode nd = gFrNodes.v[k];
+    for (uint k = gFrHeader.v[(kFrontierFaceStart + f) * gFrStride]; k < gFrHeader.v[(kFrontierFaceStart + f + 1u) * gFrStride]; ++k) {
+      GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
       uint cls = frontierClass(htCenter(levelOffset(nd.level) + nd.node), nd.level, faceCaps);
-      hreal mass = gFrMass.v[k];
-      gFrPointMass.v[k] = cls == 0u ? hreal(0.0) : cls == 2u ? mulF(mass, hreal(gFs.partialVisibility)) : mass;
-      gFrPointClass.v[k] = cls;
+      hreal mass = gFrMass.v[(k) * gFrStride];
+      gFrPointMass.v[(k) * gFrPixels] = cls == 0u ? hreal(0.0) : cls == 2u ? mulF(mass, hreal(gFs.partialVisibility)) : mass;
+      gFrPointClass.v[(k) * gFrPixels] = cls;
     }
     for (uint bin = 0u; bin < uint(HT_FRONTIER_SEGMENTS) / 12u; ++bin) {
       uint seg = bin * 12u + f;
       hreal acc = 0.0;
-      for (uint i = gFrHeader.v[0].segStart[seg]; i < gFrHeader.v[0].segStart[seg + 1u]; ++i) {
-        gFrPointCum.v[i] = acc;
-        acc = addF(acc, gFrPointMass.v[gFrOrder.v[i]]);
+      for (uint i = gFrHeader.v[(seg) * gFrStride]; i < gFrHeader.v[(seg + 1u) * gFrStride]; ++i) {
+        gFrPointCum.v[(i) * gFrPixels] = acc;
+        acc = addF(acc, gFrPointMass.v[(gFrOrder.v[(i) * gFrStride]) * gFrPixels]);
       }
     }
   }
@@ -366,25 +404,25 @@ void frontierApplyCaps() {
 // ---------------------------------------------------------------- sampling
 
 bool frontierTouched(GpuFrontierNode nd) { return ((gFrTouched >> frontierFace(nd)) & 1u) != 0u; }
-hreal frontierMass(uint k) { return frontierTouched(gFrNodes.v[k]) ? gFrPointMass.v[k] : gFrMass.v[k]; }
+hreal frontierMass(uint k) { return frontierTouched(gFrNodes.v[(k) * gFrStride]) ? gFrPointMass.v[(k) * gFrPixels] : gFrMass.v[(k) * gFrStride]; }
 uint frontierVisibility(uint k) {
-  GpuFrontierNode nd = gFrNodes.v[k];
-  return frontierTouched(nd) ? gFrPointClass.v[k] : nd.visibility;
+  GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
+  return frontierTouched(nd) ? gFrPointClass.v[(k) * gFrPixels] : nd.visibility;
 }
 
 // The segments' masses before each, and the total.
 void frontierSegments() {
   hreal total = 0.0;
   for (uint seg = 0u; seg < uint(HT_FRONTIER_SEGMENTS); ++seg) {
-    gFrSegCum.v[seg] = total;
-    uint first = gFrHeader.v[0].segStart[seg], end = gFrHeader.v[0].segStart[seg + 1u];
+    gFrSegCum.v[(seg) * gFrPixels] = total;
+    uint first = gFrHeader.v[(seg) * gFrStride], end = gFrHeader.v[(seg + 1u) * gFrStride];
     if (first == end) continue;
     if (((gFrTouched >> (seg % 12u)) & 1u) != 0u)
-      total = addF(total, addF(gFrPointCum.v[end - 1u], gFrPointMass.v[gFrOrder.v[end - 1u]]));
+      total = addF(total, addF(gFrPointCum.v[(end - 1u) * gFrPixels], gFrPointMass.v[(gFrOrder.v[(end - 1u) * gFrStride]) * gFrPixels]));
     else
-      total = addF(total, subF(gFrCum.v[end], gFrCum.v[first]));
+      total = addF(total, subF(gFrCum.v[(end) * gFrStride], gFrCum.v[(first) * gFrStride]));
   }
-  gFrSegCum.v[HT_FRONTIER_SEGMENTS] = total;
+  gFrSegCum.v[(HT_FRONTIER_SEGMENTS) * gFrPixels] = total;
   gFrTotal = total;
 }
 
@@ -421,11 +459,11 @@ uint frontierFirstLeaf(GpuFrontierNode nd) { return nd.node << (2u * (ht.order -
 
 // Frontier::nodeOfLeaf: the node holding `leaf`, or the table's size.
 uint frontierNodeOfLeaf(uint leaf) {
-  uint count = gFrHeader.v[0].count;
+  uint count = gFrHeader.v[kFrontierCount * gFrStride];
   uint first = 0u, len = count;  // std::upper_bound on the first leaves
   while (len > 0u) {
     uint step = len / 2u;
-    if (!(leaf < frontierFirstLeaf(gFrNodes.v[first + step]))) {
+    if (!(leaf < frontierFirstLeaf(gFrNodes.v[(first + step) * gFrStride]))) {
       first += step + 1u;
       len -= step + 1u;
     } else {
@@ -433,7 +471,7 @@ uint frontierNodeOfLeaf(uint leaf) {
     }
   }
   if (first == 0u) return count;
-  GpuFrontierNode nd = gFrNodes.v[first - 1u];
+  GpuFrontierNode nd = gFrNodes.v[(first - 1u) * gFrStride];
   uint leaves = 1u << (2u * (ht.order - nd.level));
   return leaf - frontierFirstLeaf(nd) < leaves ? first - 1u : count;
 }
@@ -441,10 +479,10 @@ uint frontierNodeOfLeaf(uint leaf) {
 // Frontier::pdf.
 hreal frontierPdf(uint leaf) {
   uint k = frontierNodeOfLeaf(leaf);
-  if (k >= gFrHeader.v[0].count) return 0.0;
+  if (k >= gFrHeader.v[kFrontierCount * gFrStride]) return 0.0;
   hreal mass = frontierMass(k);
   if (!(mass > 0.0)) return 0.0;
-  GpuFrontierNode nd = gFrNodes.v[k];
+  GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
   hreal p = divF(mass, gFrTotal);
   uint cls = frontierVisibility(k);
   for (uint level = nd.level + 1u; level <= ht.order; ++level) {
@@ -461,7 +499,7 @@ hreal frontierPdf(uint leaf) {
 
 // The CDF position's "mass before" of Frontier::sample.
 hreal frontierBefore(bool own, uint first, uint i) {
-  return own ? gFrPointCum.v[i] : subF(gFrCum.v[i], gFrCum.v[first]);
+  return own ? gFrPointCum.v[(i) * gFrPixels] : subF(gFrCum.v[(i) * gFrStride], gFrCum.v[(first) * gFrStride]);
 }
 
 // Frontier::sample: the leaf of the point x of the mass CDF, its direction
@@ -471,7 +509,7 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
   uint above = 1u, len = uint(HT_FRONTIER_SEGMENTS);  // std::upper_bound over the segments' starts
   while (len > 0u) {
     uint step = len / 2u;
-    if (!(target < gFrSegCum.v[above + step])) {
+    if (!(target < gFrSegCum.v[(above + step) * gFrPixels])) {
       above += step + 1u;
       len -= step + 1u;
     } else {
@@ -479,10 +517,10 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
     }
   }
   uint seg = min(above - 1u, uint(HT_FRONTIER_SEGMENTS) - 1u);
-  while (seg > 0u && !(gFrSegCum.v[seg + 1u] > gFrSegCum.v[seg])) --seg;
+  while (seg > 0u && !(gFrSegCum.v[(seg + 1u) * gFrPixels] > gFrSegCum.v[(seg) * gFrPixels])) --seg;
   bool own = ((gFrTouched >> (seg % 12u)) & 1u) != 0u;
-  uint first = gFrHeader.v[0].segStart[seg], end = gFrHeader.v[0].segStart[seg + 1u];
-  hreal r = subF(target, gFrSegCum.v[seg]);
+  uint first = gFrHeader.v[(seg) * gFrStride], end = gFrHeader.v[(seg + 1u) * gFrStride];
+  hreal r = subF(target, gFrSegCum.v[(seg) * gFrPixels]);
   uint lo = first, hi = end;
   while (hi - lo > 1u) {
     uint mid = (lo + hi) / 2u;
@@ -492,13 +530,13 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
       hi = mid;
   }
   uint i = lo;
-  while (i > first && !(frontierMass(gFrOrder.v[i]) > 0.0)) --i;
-  while (!(frontierMass(gFrOrder.v[i]) > 0.0)) ++i;
-  uint k = gFrOrder.v[i];
+  while (i > first && !(frontierMass(gFrOrder.v[(i) * gFrStride]) > 0.0)) --i;
+  while (!(frontierMass(gFrOrder.v[(i) * gFrStride]) > 0.0)) ++i;
+  uint k = gFrOrder.v[(i) * gFrStride];
   hreal mass = frontierMass(k);
   hreal t = clamp(divF(subF(r, frontierBefore(own, first, i)), mass), hreal(0.0), hreal(1.0));
   hreal p = divF(mass, gFrTotal);
-  GpuFrontierNode nd = gFrNodes.v[k];
+  GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
   uint node = nd.node;
   uint cls = frontierVisibility(k);
   for (uint level = nd.level + 1u; level <= ht.order; ++level) {
@@ -529,7 +567,9 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
 // Points the globals at the pixel's table and scratch; false for a
 // point with nothing to sample.
 void frontierBind(uint slot) {
-  gFrBase = pc.frontierScratch + uint64_t(slot) * uint64_t(gFs.pixelBytes);
+  gFrBase = pc.frontierScratch;
+  gFrPixels = pc.tileWidth * pc.tileHeight;
+  gFrSlot = slot;
   gFrPointMass = frontierReals(gFs.offPointMass);
   gFrPointCum = frontierReals(gFs.offPointCum);
   gFrPointClass = frontierUints(gFs.offPointClass);
@@ -552,14 +592,14 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
     frontierApplyCaps();
   } else {
     frontierRefine(n);
-    htNodes += 12u + 4u * gFrHeader.v[0].splits;
+    htNodes += 12u + 4u * gFrHeader.v[kFrontierSplits * gFrStride];
   }
   frontierSegments();
   if (!(gFrTotal > 0.0)) return false;
   GpuFrontierPoint pt;
   pt.table = table;
   pt.touched = gFrTouched;
-  pt.nb = gFrHeader.v[0].brdfCount;
+  pt.nb = gFrHeader.v[kFrontierBrdfCount * gFrStride];
   pt.nt = n - pt.nb;
   pt.total = hrealToBits(gFrTotal);
   pt.u = hrealToBits(hreal(rngNext(rng)));
@@ -579,11 +619,7 @@ GpuFrontierPoint frontierResume(vec3 position, vec3 normal, vec3 wo, GpuMaterial
     for (uint k = 0u; k < gFrCapCount; ++k)
       if (dot3(gFrCapAxis[k], ht.n) < -0.9999) gFrCaps &= ~(1u << k);
   } else {
-    gFrHeader = FrontierHeaders(gFrBase + uint64_t(gFs.offHeader));
-    gFrNodes = frontierNodes(gFs.offNodes);
-    gFrOrder = frontierUints(gFs.offOrder);
-    gFrMass = frontierReals(gFs.offMass);
-    gFrCum = frontierReals(gFs.offCum);
+    frontierUseOwn();
   }
   gFrTouched = pt.touched;
   gFrTotal = hrealFromBits(pt.total);
