@@ -86,6 +86,8 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
     gpu += kVulkanBytes;
     gpu += radiance + trees + sat;
     if (isHt(in.method)) gpu += nodes * 20 + (uint64_t(32) << 20);  // geometry; a tile's pending samples
+    // ht-frontier: geometry, colour bins; a tile's tables (GpuRenderer's kScratchBytes at most).
+    if (in.method == Method::HtFrontier) gpu += nodes * 21 + (uint64_t(96) << 20);
     gpu += image * 12;  // the readback of the tiles, gathered
     add("GPU buffers", gpu);
   }
