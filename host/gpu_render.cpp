@@ -421,6 +421,51 @@ void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables
   if (changed) sceneBuffer.upload(&scene, sizeof(scene));
 }
 
+namespace {
+
+// The normals (as a point on the plane sees them) of both sides of every
+// plane with a Lambert material: the shared tables ht-frontier uses.
+std::vector<glm::vec3> sharedFrontierNormals(const Scene& scene) {
+  std::vector<glm::vec3> normals;
+  for (const Plane& p : scene.planes) {
+    if (scene.materials[size_t(p.material)].type != MaterialType::Lambert) continue;
+    for (const glm::vec3& side : {p.normal, -p.normal}) {
+      const glm::vec3 n = frontierSurfaceNormal(scene.environment, side);
+      if (std::find(normals.begin(), normals.end(), n) == normals.end()) normals.push_back(n);
+    }
+  }
+  return normals;
+}
+
+// A pixel's ht-frontier scratch, in bytes per pixel: GpuFrontierPoint, then
+// each array 8-byte aligned (the shader multiplies by the tile's pixels,
+// which it lays side by side), for f's capacities and `real`-byte reals.
+void layOutFrontierScratch(uint32_t real, GpuFrontierScene& f) {
+  const uint32_t candidates = 12 + 4 * f.refinements;
+  uint32_t at = uint32_t(sizeof(GpuFrontierPoint));
+  auto place = [&](uint32_t bytes) {
+    const uint32_t o = at;
+    at = (at + bytes + 7) / 8 * 8;
+    return o;
+  };
+  f.offHeader = place(sizeof(GpuFrontierHeader));
+  f.offNodes = place(f.capacity * sizeof(GpuFrontierNode));
+  f.offOrder = place(f.capacity * 4);
+  f.offMass = place(f.capacity * real);
+  f.offCum = place((f.capacity + 1) * real);
+  f.offCandidates = place(candidates * sizeof(GpuFrontierNode));
+  f.offCandidateMass = place(candidates * real);
+  f.offHeapKey = place(candidates * real);
+  f.offHeapIndex = place(std::max<uint32_t>(candidates, HT_FRONTIER_SEGMENTS) * 4);  // also the counting sort's
+  f.offPointMass = place(f.sharedCapacity * real);
+  f.offPointClass = place(f.sharedCapacity * 4);
+  f.offPointCum = place(f.sharedCapacity * real);
+  f.offSegCum = place((HT_FRONTIER_SEGMENTS + 1) * real);
+  f.pixelBytes = at;
+}
+
+}  // namespace
+
 // ht-frontier's GpuFrontierScene for this render: FrontierOptions as
 // estimateDirect sets them, the shared Lambert table of each side of each
 // plane with a Lambert material, and the layout of a pixel's scratch.
@@ -443,15 +488,8 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
   f = GpuFrontierScene{};
   f.bins = frontierBinsBuffer.address();
 
-  std::vector<glm::vec3> normals;
-  if (options.sharedRefinements >= 0)
-    for (const Plane& p : hs.planes) {
-      if (hs.materials[size_t(p.material)].type != MaterialType::Lambert) continue;
-      for (const glm::vec3& side : {p.normal, -p.normal}) {
-        const glm::vec3 nHp = frontierSurfaceNormal(env, side);
-        if (std::find(normals.begin(), normals.end(), nHp) == normals.end()) normals.push_back(nHp);
-      }
-    }
+  const std::vector<glm::vec3> normals =
+      options.sharedRefinements >= 0 ? sharedFrontierNormals(hs) : std::vector<glm::vec3>{};
   if (normals.size() > size_t(HT_FRONTIER_MAX_SHARED))
     throw Error(fmt::format("method ht-frontier on the GPU handles at most {} planes; use --device cpu",
                             HT_FRONTIER_MAX_SHARED / 2));
@@ -512,29 +550,7 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
   f.flags = (options.visibility ? HT_FRONTIER_VISIBILITY : 0u) | (options.colourOrder ? HT_FRONTIER_COLOUR_ORDER : 0u);
   f.capCosMargin = std::cos(kCapMargin);
   f.capSinMargin = std::sin(kCapMargin);
-  // The pixel's scratch: GpuFrontierPoint first, then each array 8-byte aligned.
-  const uint32_t real = fp64 ? 8 : 4;
-  const uint32_t candidates = 12 + 4 * refinements;
-  uint32_t at = uint32_t(sizeof(GpuFrontierPoint));
-  auto place = [&](uint32_t bytes) {
-    const uint32_t o = at;
-    at = (at + bytes + 7) / 8 * 8;
-    return o;
-  };
-  f.offHeader = place(sizeof(GpuFrontierHeader));
-  f.offNodes = place(f.capacity * sizeof(GpuFrontierNode));
-  f.offOrder = place(f.capacity * 4);
-  f.offMass = place(f.capacity * real);
-  f.offCum = place((f.capacity + 1) * real);
-  f.offCandidates = place(candidates * sizeof(GpuFrontierNode));
-  f.offCandidateMass = place(candidates * real);
-  f.offHeapKey = place(candidates * real);
-  f.offHeapIndex = place(std::max<uint32_t>(candidates, HT_FRONTIER_SEGMENTS) * 4);  // also the counting sort's
-  f.offPointMass = place(sharedCapacity * real);
-  f.offPointClass = place(sharedCapacity * 4);
-  f.offPointCum = place(sharedCapacity * real);
-  f.offSegCum = place((HT_FRONTIER_SEGMENTS + 1) * real);
-  f.pixelBytes = at;
+  layOutFrontierScratch(fp64 ? 8 : 4, f);
   frontierBuffers.push_back(vk::Buffer(ctx, sizeof(GpuFrontierScene), vk::MemoryUse::DeviceLocal));
   frontierBuffers.back().upload(&f, sizeof(f));
   scene.frontier = frontierBuffers.back().address();

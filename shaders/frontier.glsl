@@ -368,11 +368,17 @@ uint frontierSharedTable() {
   return kFrontierNone;
 }
 
+// A shared table has no mass below the horizon but for nodes the horizon
+// cuts: the cap of the point's own plane is left out.
+void frontierDropOwnPlane() {
+  for (uint k = 0u; k < gFrCapCount; ++k)
+    if (dot3(gFrCapAxis[k], ht.n) < -0.9999) gFrCaps &= ~(1u << k);
+}
+
 // Frontier::build on a shared table: the point's caps (less its own
 // plane's) on the faces they reach.
 void frontierApplyCaps() {
-  for (uint k = 0u; k < gFrCapCount; ++k)
-    if (dot3(gFrCapAxis[k], ht.n) < -0.9999) gFrCaps &= ~(1u << k);
+  frontierDropOwnPlane();
   float cR = gFs.levelCosRadius[0], sR = gFs.levelSinRadius[0];
   gFrTouched = 0u;
   for (uint f = 0u; f < 12u; ++f) {
@@ -564,8 +570,7 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
 
 // ---------------------------------------------------------------- estimate
 
-// Points the globals at the pixel's table and scratch; false for a
-// point with nothing to sample.
+// Points the globals at the pixel's scratch.
 void frontierBind(uint slot) {
   gFrBase = pc.frontierScratch;
   gFrPixels = pc.tileWidth * pc.tileHeight;
@@ -616,8 +621,7 @@ GpuFrontierPoint frontierResume(vec3 position, vec3 normal, vec3 wo, GpuMaterial
   GpuFrontierPoint pt = frontierPoint().v[0];
   if (pt.table != kFrontierNone) {
     frontierUseShared(pt.table);
-    for (uint k = 0u; k < gFrCapCount; ++k)
-      if (dot3(gFrCapAxis[k], ht.n) < -0.9999) gFrCaps &= ~(1u << k);
+    frontierDropOwnPlane();
   } else {
     frontierUseOwn();
   }
