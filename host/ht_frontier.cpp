@@ -172,7 +172,7 @@ const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOpti
 }  // namespace
 
 glm::vec3 frontierSurfaceNormal(const Environment& env, const glm::vec3& normal) {
-  return Frame(glm::normalize(glm::vec3(env.toHealpixFrame(normal)))).n;
+  return glm::normalize(glm::vec3(env.toHealpixFrame(normal)));
 }
 
 void buildSharedFrontierTable(const Environment& env, const HtGeometry& g, const glm::vec3& n,

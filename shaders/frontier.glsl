@@ -65,7 +65,8 @@ FrontierUints frontierUints(uint offset) { return FrontierUints(frontierArray(of
 FrontierNodes frontierNodes(uint offset) { return FrontierNodes(frontierArray(offset, 24u)); }
 FrontierPoints frontierPoint() { return FrontierPoints(gFrBase + uint64_t(gFrSlot) * 32ul); }
 
-// The table's header words (GpuFrontierHeader) and arrays.
+// The table's header words (GpuFrontierHeader, segStart first) and arrays,
+// read; the own table's are written through gFrHeader and the rest directly.
 #define kFrontierFaceStart (HT_FRONTIER_SEGMENTS + 1)
 #define kFrontierCount (kFrontierFaceStart + 13)
 #define kFrontierSplits (kFrontierCount + 1)
@@ -73,7 +74,6 @@ FrontierPoints frontierPoint() { return FrontierPoints(gFrBase + uint64_t(gFrSlo
 #define kFrontierNodeBase (kFrontierCount + 3)
 #define kFrontierCumBase (kFrontierCount + 4)
 uint tableWord(uint w) { return gFrHeader.v[w * gFrStride]; }
-void setTableWord(uint w, uint v) { gFrHeader.v[w * gFrStride] = v; }
 uint segStart(uint seg) { return tableWord(seg); }
 uint faceStart(uint f) { return tableWord(kFrontierFaceStart + f); }
 uint tableCount() { return tableWord(kFrontierCount); }
@@ -81,8 +81,6 @@ GpuFrontierNode tableNode(uint k) { return gFrNodes.v[k * gFrStride]; }
 uint tableOrder(uint i) { return gFrOrder.v[i * gFrStride]; }
 hreal tableMass(uint k) { return gFrMass.v[k * gFrStride]; }
 hreal tableCum(uint i) { return gFrCum.v[i * gFrStride]; }
-// The point's arrays (always the tile's pixels apart).
-#define pointAt(i) ((i) * gFrPixels)
 
 precise hreal addF(hreal a, hreal b) { return a + b; }
 precise hreal subF(hreal a, hreal b) { return a - b; }
@@ -240,25 +238,25 @@ void frontierFinishTable(uint count, uint n) {
   for (uint f = 0u; f <= 12u; ++f) gFrHeader.v[(kFrontierFaceStart + f) * gFrStride] = 0u;
   for (uint s = 0u; s <= uint(HT_FRONTIER_SEGMENTS); ++s) gFrHeader.v[(s) * gFrStride] = 0u;
   for (uint k = 0u; k < count; ++k) {
-    GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
+    GpuFrontierNode nd = tableNode(k);
     ++gFrHeader.v[(kFrontierFaceStart + frontierFace(nd) + 1u) * gFrStride];
     ++gFrHeader.v[(frontierSegment(nd) + 1u) * gFrStride];
   }
-  for (uint f = 0u; f < 12u; ++f) gFrHeader.v[(kFrontierFaceStart + f + 1u) * gFrStride] += gFrHeader.v[(kFrontierFaceStart + f) * gFrStride];
+  for (uint f = 0u; f < 12u; ++f) gFrHeader.v[(kFrontierFaceStart + f + 1u) * gFrStride] += faceStart(f);
   for (uint s = 0u; s < uint(HT_FRONTIER_SEGMENTS); ++s) {
-    gFrHeader.v[(s + 1u) * gFrStride] += gFrHeader.v[(s) * gFrStride];
-    next.v[(s) * gFrPixels] = gFrHeader.v[(s) * gFrStride];
+    gFrHeader.v[(s + 1u) * gFrStride] += segStart(s);
+    next.v[(s) * gFrPixels] = segStart(s);
   }
   for (uint k = 0u; k < count; ++k) {
-    uint s = frontierSegment(gFrNodes.v[(k) * gFrStride]);
+    uint s = frontierSegment(tableNode(k));
     gFrOrder.v[(next.v[(s) * gFrPixels]) * gFrStride] = k;
     ++next.v[(s) * gFrPixels];
   }
   hreal total = 0.0, coarse = 0.0;
   for (uint i = 0u; i < count; ++i) {
-    uint k = gFrOrder.v[(i) * gFrStride];
-    GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
-    hreal mass = gFrMass.v[(k) * gFrStride];
+    uint k = tableOrder(i);
+    GpuFrontierNode nd = tableNode(k);
+    hreal mass = tableMass(k);
     gFrCum.v[(i) * gFrStride] = total;
     total = addF(total, mass);
     precise float coarseAt = gFs.coarseRatio * nd.brdfCentre;
@@ -269,7 +267,7 @@ void frontierFinishTable(uint count, uint n) {
   // frontierBrdfCount: lround of share x n.
   precise hreal x = min(share, hreal(gFs.maxBrdfShare)) * hreal(n);
   hreal whole = floor(x);
-  uint nb = uint(whole) + (x - whole >= 0.5 ? 1u : 0u);
+  uint nb = uint(whole) + (subF(x, whole) >= 0.5 ? 1u : 0u);
   gFrHeader.v[kFrontierBrdfCount * gFrStride] = min(nb, n > 0u ? n - 1u : 0u);
 }
 
@@ -349,7 +347,7 @@ void frontierUseShared(uint t) {
   FrontierSceneRef s = scene.frontier;
   gFrStride = 1u;
   gFrHeader = FrontierUints(uint64_t(s.f.sharedHeaders) + uint64_t(t) * uint64_t(4 * (HT_FRONTIER_SEGMENTS + 20)));
-  uint nodeBase = gFrHeader.v[kFrontierNodeBase * gFrStride], cumBase = gFrHeader.v[kFrontierCumBase * gFrStride];
+  uint nodeBase = tableWord(kFrontierNodeBase), cumBase = tableWord(kFrontierCumBase);
   gFrNodes = FrontierNodes(uint64_t(s.f.sharedNodes) + uint64_t(nodeBase) * 24ul);
   gFrOrder = FrontierUints(uint64_t(s.f.sharedOrder) + uint64_t(nodeBase) * 4ul);
   gFrMass = FrontierReals(uint64_t(s.f.sharedMass) + uint64_t(nodeBase) * uint64_t(kFrontierRealBytes));
@@ -389,19 +387,19 @@ void frontierApplyCaps() {
         faceCaps |= 1u << k;
     if (faceCaps == 0u) continue;
     gFrTouched |= 1u << f;
-    for (uint k = gFrHeader.v[(kFrontierFaceStart + f) * gFrStride]; k < gFrHeader.v[(kFrontierFaceStart + f + 1u) * gFrStride]; ++k) {
-      GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
+    for (uint k = faceStart(f); k < faceStart(f + 1u); ++k) {
+      GpuFrontierNode nd = tableNode(k);
       uint cls = frontierClass(htCenter(levelOffset(nd.level) + nd.node), nd.level, faceCaps);
-      hreal mass = gFrMass.v[(k) * gFrStride];
+      hreal mass = tableMass(k);
       gFrPointMass.v[(k) * gFrPixels] = cls == 0u ? hreal(0.0) : cls == 2u ? mulF(mass, hreal(gFs.partialVisibility)) : mass;
       gFrPointClass.v[(k) * gFrPixels] = cls;
     }
     for (uint bin = 0u; bin < uint(HT_FRONTIER_SEGMENTS) / 12u; ++bin) {
       uint seg = bin * 12u + f;
       hreal acc = 0.0;
-      for (uint i = gFrHeader.v[(seg) * gFrStride]; i < gFrHeader.v[(seg + 1u) * gFrStride]; ++i) {
+      for (uint i = segStart(seg); i < segStart(seg + 1u); ++i) {
         gFrPointCum.v[(i) * gFrPixels] = acc;
-        acc = addF(acc, gFrPointMass.v[(gFrOrder.v[(i) * gFrStride]) * gFrPixels]);
+        acc = addF(acc, gFrPointMass.v[(tableOrder(i)) * gFrPixels]);
       }
     }
   }
@@ -410,9 +408,9 @@ void frontierApplyCaps() {
 // ---------------------------------------------------------------- sampling
 
 bool frontierTouched(GpuFrontierNode nd) { return ((gFrTouched >> frontierFace(nd)) & 1u) != 0u; }
-hreal frontierMass(uint k) { return frontierTouched(gFrNodes.v[(k) * gFrStride]) ? gFrPointMass.v[(k) * gFrPixels] : gFrMass.v[(k) * gFrStride]; }
+hreal frontierMass(uint k) { return frontierTouched(tableNode(k)) ? gFrPointMass.v[(k) * gFrPixels] : tableMass(k); }
 uint frontierVisibility(uint k) {
-  GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
+  GpuFrontierNode nd = tableNode(k);
   return frontierTouched(nd) ? gFrPointClass.v[(k) * gFrPixels] : nd.visibility;
 }
 
@@ -421,12 +419,12 @@ void frontierSegments() {
   hreal total = 0.0;
   for (uint seg = 0u; seg < uint(HT_FRONTIER_SEGMENTS); ++seg) {
     gFrSegCum.v[(seg) * gFrPixels] = total;
-    uint first = gFrHeader.v[(seg) * gFrStride], end = gFrHeader.v[(seg + 1u) * gFrStride];
+    uint first = segStart(seg), end = segStart(seg + 1u);
     if (first == end) continue;
     if (((gFrTouched >> (seg % 12u)) & 1u) != 0u)
-      total = addF(total, addF(gFrPointCum.v[(end - 1u) * gFrPixels], gFrPointMass.v[(gFrOrder.v[(end - 1u) * gFrStride]) * gFrPixels]));
+      total = addF(total, addF(gFrPointCum.v[(end - 1u) * gFrPixels], gFrPointMass.v[(tableOrder(end - 1u)) * gFrPixels]));
     else
-      total = addF(total, subF(gFrCum.v[(end) * gFrStride], gFrCum.v[(first) * gFrStride]));
+      total = addF(total, subF(tableCum(end), tableCum(first)));
   }
   gFrSegCum.v[(HT_FRONTIER_SEGMENTS) * gFrPixels] = total;
   gFrTotal = total;
@@ -465,11 +463,11 @@ uint frontierFirstLeaf(GpuFrontierNode nd) { return nd.node << (2u * (ht.order -
 
 // Frontier::nodeOfLeaf: the node holding `leaf`, or the table's size.
 uint frontierNodeOfLeaf(uint leaf) {
-  uint count = gFrHeader.v[kFrontierCount * gFrStride];
+  uint count = tableCount();
   uint first = 0u, len = count;  // std::upper_bound on the first leaves
   while (len > 0u) {
     uint step = len / 2u;
-    if (!(leaf < frontierFirstLeaf(gFrNodes.v[(first + step) * gFrStride]))) {
+    if (!(leaf < frontierFirstLeaf(tableNode(first + step)))) {
       first += step + 1u;
       len -= step + 1u;
     } else {
@@ -477,7 +475,7 @@ uint frontierNodeOfLeaf(uint leaf) {
     }
   }
   if (first == 0u) return count;
-  GpuFrontierNode nd = gFrNodes.v[(first - 1u) * gFrStride];
+  GpuFrontierNode nd = tableNode(first - 1u);
   uint leaves = 1u << (2u * (ht.order - nd.level));
   return leaf - frontierFirstLeaf(nd) < leaves ? first - 1u : count;
 }
@@ -485,10 +483,10 @@ uint frontierNodeOfLeaf(uint leaf) {
 // Frontier::pdf.
 hreal frontierPdf(uint leaf) {
   uint k = frontierNodeOfLeaf(leaf);
-  if (k >= gFrHeader.v[kFrontierCount * gFrStride]) return 0.0;
+  if (k >= tableCount()) return 0.0;
   hreal mass = frontierMass(k);
   if (!(mass > 0.0)) return 0.0;
-  GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
+  GpuFrontierNode nd = tableNode(k);
   hreal p = divF(mass, gFrTotal);
   uint cls = frontierVisibility(k);
   for (uint level = nd.level + 1u; level <= ht.order; ++level) {
@@ -505,7 +503,7 @@ hreal frontierPdf(uint leaf) {
 
 // The CDF position's "mass before" of Frontier::sample.
 hreal frontierBefore(bool own, uint first, uint i) {
-  return own ? gFrPointCum.v[(i) * gFrPixels] : subF(gFrCum.v[(i) * gFrStride], gFrCum.v[(first) * gFrStride]);
+  return own ? gFrPointCum.v[(i) * gFrPixels] : subF(tableCum(i), tableCum(first));
 }
 
 // Frontier::sample: the leaf of the point x of the mass CDF, its direction
@@ -525,7 +523,7 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
   uint seg = min(above - 1u, uint(HT_FRONTIER_SEGMENTS) - 1u);
   while (seg > 0u && !(gFrSegCum.v[(seg + 1u) * gFrPixels] > gFrSegCum.v[(seg) * gFrPixels])) --seg;
   bool own = ((gFrTouched >> (seg % 12u)) & 1u) != 0u;
-  uint first = gFrHeader.v[(seg) * gFrStride], end = gFrHeader.v[(seg + 1u) * gFrStride];
+  uint first = segStart(seg), end = segStart(seg + 1u);
   hreal r = subF(target, gFrSegCum.v[(seg) * gFrPixels]);
   uint lo = first, hi = end;
   while (hi - lo > 1u) {
@@ -536,13 +534,13 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
       hi = mid;
   }
   uint i = lo;
-  while (i > first && !(frontierMass(gFrOrder.v[(i) * gFrStride]) > 0.0)) --i;
-  while (!(frontierMass(gFrOrder.v[(i) * gFrStride]) > 0.0)) ++i;
-  uint k = gFrOrder.v[(i) * gFrStride];
+  while (i > first && !(frontierMass(tableOrder(i)) > 0.0)) --i;
+  while (!(frontierMass(tableOrder(i)) > 0.0)) ++i;
+  uint k = tableOrder(i);
   hreal mass = frontierMass(k);
   hreal t = clamp(divF(subF(r, frontierBefore(own, first, i)), mass), hreal(0.0), hreal(1.0));
   hreal p = divF(mass, gFrTotal);
-  GpuFrontierNode nd = gFrNodes.v[(k) * gFrStride];
+  GpuFrontierNode nd = tableNode(k);
   uint node = nd.node;
   uint cls = frontierVisibility(k);
   for (uint level = nd.level + 1u; level <= ht.order; ++level) {
@@ -597,14 +595,14 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
     frontierApplyCaps();
   } else {
     frontierRefine(n);
-    htNodes += 12u + 4u * gFrHeader.v[kFrontierSplits * gFrStride];
+    htNodes += 12u + 4u * tableWord(kFrontierSplits);
   }
   frontierSegments();
   if (!(gFrTotal > 0.0)) return false;
   GpuFrontierPoint pt;
   pt.table = table;
   pt.touched = gFrTouched;
-  pt.nb = gFrHeader.v[kFrontierBrdfCount * gFrStride];
+  pt.nb = tableWord(kFrontierBrdfCount);
   pt.nt = n - pt.nb;
   pt.total = hrealToBits(gFrTotal);
   pt.u = hrealToBits(hreal(rngNext(rng)));

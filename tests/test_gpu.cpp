@@ -691,23 +691,35 @@ INSTANTIATE_TEST_SUITE_P(Competitors, GpuSameSeed,
 INSTANTIATE_TEST_SUITE_P(Competitors, GpuOtherSeeds, ::testing::Values(Method::Ris, Method::Tsis),
                          [](const auto& info) { return std::string(methodName(info.param)); });
 
-// tsis and wis keep each pixel's partition or product tree in a scratch
-// buffer indexed by the pixel's place in its tile (the same index for
-// both): small tiles must give the same image.
-TEST(GpuCompetitors, TilesGiveTheSameImage) {
+// `rs` on the test scene in fp64, in tiles of at most 16 pixels (`a`) and
+// in one tile (`b`); false on a device without shaderFloat64.
+bool renderTiledAndWhole(const RenderSettings& rs, GpuRenderResult& a, GpuRenderResult& b) {
   const Scene& scene = testScene();
   GpuOptions small = gpuOptions();
   small.maxTileSide = 16;
   GpuRenderer tiled(small), whole(gpuOptions());
-  if (!whole.float64()) GTEST_SKIP() << "device without shaderFloat64";
+  if (!whole.float64()) return false;
   tiled.setScene(scene);
   whole.setScene(scene);
-  const RenderSettings rs = settings(Method::Tsis, 4, 3, 61, 29);
-  GpuRenderResult a = tiled.render(rs), b = whole.render(rs);
-  EXPECT_EQ(a.tiles, 4 * 2);
+  a = tiled.render(rs);
+  b = whole.render(rs);
+  return true;
+}
+
+size_t differingPixels(const GpuRenderResult& a, const GpuRenderResult& b) {
   size_t differ = 0;
   for (size_t i = 0; i < a.result.image.pixels.size(); ++i) differ += a.result.image.pixels[i] != b.result.image.pixels[i];
-  EXPECT_EQ(differ, 0u);
+  return differ;
+}
+
+// tsis and wis keep each pixel's partition or product tree in a scratch
+// buffer indexed by the pixel's place in its tile (the same index for
+// both): small tiles must give the same image.
+TEST(GpuCompetitors, TilesGiveTheSameImage) {
+  GpuRenderResult a, b;
+  if (!renderTiledAndWhole(settings(Method::Tsis, 4, 3, 61, 29), a, b)) GTEST_SKIP() << "device without shaderFloat64";
+  EXPECT_EQ(a.tiles, 4 * 2);
+  EXPECT_EQ(differingPixels(a, b), 0u);
   expectNoValidationMessages();
 }
 
@@ -913,24 +925,16 @@ INSTANTIATE_TEST_SUITE_P(Product, GpuOtherSeedsFp32, ::testing::Values(Method::H
 // CPU's, pixel by pixel in sum, and a pixel's scratch is its own: small
 // tiles give the same image.
 TEST(GpuFrontier, SameTablesAndTilesGiveTheSameImage) {
-  const Scene& scene = testScene();
-  GpuOptions small = gpuOptions();
-  small.maxTileSide = 16;
-  GpuRenderer tiled(small), whole(gpuOptions());
-  if (!whole.float64()) GTEST_SKIP() << "device without shaderFloat64";
-  tiled.setScene(scene);
-  whole.setScene(scene);
   const RenderSettings rs = settings(Method::HtFrontier, 8, 3, 61, 29);
-  GpuRenderResult a = tiled.render(rs), b = whole.render(rs);
-  const RenderResult cpu = renderCpu(scene, rs);
+  GpuRenderResult a, b;
+  if (!renderTiledAndWhole(rs, a, b)) GTEST_SKIP() << "device without shaderFloat64";
+  const RenderResult cpu = renderCpu(testScene(), rs);
   EXPECT_EQ(a.tiles, 4 * 2);
   EXPECT_GT(cpu.counters.htNodes, 0u);
   EXPECT_EQ(b.result.counters.htNodes, cpu.counters.htNodes);
   EXPECT_EQ(a.result.counters.htNodes, cpu.counters.htNodes);
   EXPECT_EQ(b.result.counters.directions, uint64_t(8) * cpu.shadedPixels);
-  size_t differ = 0;
-  for (size_t i = 0; i < a.result.image.pixels.size(); ++i) differ += a.result.image.pixels[i] != b.result.image.pixels[i];
-  EXPECT_EQ(differ, 0u);
+  EXPECT_EQ(differingPixels(a, b), 0u);
   expectNoValidationMessages();
 }
 
