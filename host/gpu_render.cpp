@@ -573,7 +573,7 @@ GpuPush tilePush(const RenderSettings& s, uint32_t x, uint32_t y, uint32_t tileW
   if (methodInfo(s.method).family == Family::Ht) {
     // HtOptions as estimateDirect (host/integrator.cpp) sets them.
     const HtOptions ho = htOptionsFor(s.method, s.options);
-    if (ho.budgetRefinements > HT_MAX_BUDGET_REFINEMENTS || ho.maxLevel > 255)
+    if (ho.budgetRefinements > HT_MAX_BUDGET_REFINEMENTS || ho.maxLevel > HT_MAX_WALK_LEVEL)
       throw Error("internal: HtOptions beyond the shaders' limits");
     push.htFlags = (ho.visibility ? HT_FLAG_VISIBILITY : 0u) | (ho.biased ? HT_FLAG_BIASED : 0u) |
                    (ho.brdfTable ? HT_FLAG_BRDF_TABLE : 0u) | (ho.sphereSequence ? HT_FLAG_SPHERE_SEQUENCE : 0u) |

@@ -70,6 +70,7 @@
 #define HT_MAX_CAPS 16
 #define HT_MAX_ORDER 13  // healpix::kMaxOrder
 #define HT_MAX_BUDGET_REFINEMENTS 24
+#define HT_MAX_WALK_LEVEL 24  // ht*: deepest (virtual) level of the walk, HtOptions::maxLevel
 #define HT_SAMPLE_LOG_SLOTS 64
 #define HT_PENDING_SLOTS 8  // ht*: accepted samples a pixel holds before shading them (GpuHtPending)
 // ht* with table bounds: BrdfTable's sizes (host/brdf_table.h); per material

@@ -67,6 +67,10 @@ HtPoint ht;
 vec3 gHtCapAxis[HT_MAX_CAPS];
 float gHtCapAngle[HT_MAX_CAPS];
 float gHtCapCos[HT_MAX_CAPS];
+// Per cap and data level: the cosines past which a node's cone lies inside
+// the cap, or meets it (HtPoint::Cap::cosInside, cosOutside).
+float gHtCapCosInside[HT_MAX_CAPS * (HT_MAX_ORDER + 1)];
+float gHtCapCosOutside[HT_MAX_CAPS * (HT_MAX_ORDER + 1)];
 uint gHtNodes = 0u;
 uint gHtSamples = 0u;
 uint gHtMaterial = 0u;  // index of the shading point's material (table bounds)
@@ -154,16 +158,11 @@ precise float htBrdfBound(uint i) {
 // 0: the cone is fully blocked, 1: fully free, 2: partly covered.
 uint htVisibilityClass(vec3 axis, uint level) {
   bool partial = false;
-  float rad = scene.htLevelRadius[level];
   for (uint k = 0u; k < ht.capCount; ++k) {
     precise float d = dot3(axis, gHtCapAxis[k]);
-    float angle = gHtCapAngle[k];
-    precise float inner = angle - rad;
-    precise float outer = angle + rad;
-    float cosInside = angle > rad ? cos(inner) : 2.0;
-    float cosOutside = cos(min(kPi, outer));
-    if (d >= cosInside) return 0u;
-    if (d > cosOutside) partial = true;
+    uint at = k * uint(HT_MAX_ORDER + 1) + level;
+    if (d >= gHtCapCosInside[at]) return 0u;
+    if (d > gHtCapCosOutside[at]) partial = true;
   }
   return partial ? 2u : 1u;
 }
@@ -214,6 +213,14 @@ void htAddCap(vec3 axis, float angle) {
   gHtCapAxis[ht.capCount] = axis;
   gHtCapAngle[ht.capCount] = angle;
   gHtCapCos[ht.capCount] = cos(angle);
+  for (uint level = 0u; level <= ht.order; ++level) {
+    float rad = scene.htLevelRadius[level];
+    precise float inner = angle - rad;
+    precise float outer = angle + rad;
+    uint at = ht.capCount * uint(HT_MAX_ORDER + 1) + level;
+    gHtCapCosInside[at] = angle > rad ? cos(inner) : 2.0;
+    gHtCapCosOutside[at] = cos(min(kPi, outer));
+  }
   ++ht.capCount;
 }
 
@@ -393,10 +400,24 @@ void htShadePending(Shading sh, inout Sampler smp) {
 // The smallest bound on the path, per data level (the one value the hash cannot give back).
 float gHtPathMin[HT_MAX_ORDER + 1];
 
+// Per level of the walk's path: the node's children's permutation and its
+// lowest candidate, so that a step to the next sibling or up to the parent
+// neither hashes nor divides.
+uint gHtWalkPerm[HT_MAX_WALK_LEVEL];
+uint64_t gHtWalkR[HT_MAX_WALK_LEVEL];
+
+// The path's permutations and candidates from the hash, for a walk resumed
+// at (level, node) with lowest candidate r.
+void htRestorePath(uint seed, uint level, uint64_t node, uint64_t r) {
+  for (uint l = 0u; l < level; ++l) {
+    gHtWalkPerm[l] = htPermutation(seed, l, node >> (2u * (level - l)));
+    gHtWalkR[l] = r % htStride(l);
+  }
+}
+
 // The walk's next node after (level, node) and everything below it: the
 // next sibling, going up as far as needed; after the last face, face 12.
-void htNextSibling(uint seed, uint64_t faceDigits, inout uint face, inout uint level, inout uint64_t node,
-                   inout uint64_t r) {
+void htNextSibling(uint64_t faceDigits, inout uint face, inout uint level, inout uint64_t node, inout uint64_t r) {
   for (;;) {
     if (level == 0u) {
       ++face;
@@ -405,14 +426,12 @@ void htNextSibling(uint seed, uint64_t faceDigits, inout uint face, inout uint l
       return;
     }
     uint j = uint(node & 3ul);
-    uint64_t stride = htStride(level - 1u);
     if (j < 3u) {
-      uint perm = htPermutation(seed, level - 1u, node >> 2);
-      r = r % stride + uint64_t(htDigit(perm, j + 1u)) * stride;
+      r = gHtWalkR[level - 1u] + uint64_t(htDigit(gHtWalkPerm[level - 1u], j + 1u)) * htStride(level - 1u);
       ++node;
       return;
     }
-    r %= stride;
+    r = gHtWalkR[level - 1u];
     node >>= 2;
     --level;
   }
@@ -462,6 +481,7 @@ bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint
   HtPendingList pending = HtPendingList(pc.htPending);
   const uint pendingBase = htPendingBase();
   uint step = 0u;
+  if (!finished) htRestorePath(seed, level, node, r);
   while (step < steps && !finished) {
   for (; step < steps && !finished && gHtPending < uint(HT_PENDING_SLOTS); ++step) {
     bool descend = false;
@@ -568,18 +588,21 @@ bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint
       }
     }
     if (descend) {
-      r += uint64_t(htDigit(htPermutation(seed, level, node), 0u)) * htStride(level);
+      uint perm = htPermutation(seed, level, node);
+      gHtWalkPerm[level] = perm;
+      gHtWalkR[level] = r;
+      r += uint64_t(htDigit(perm, 0u)) * htStride(level);
       node *= 4ul;
       ++level;
     } else {
-      htNextSibling(seed, faceDigits, face, level, node, r);
+      htNextSibling(faceDigits, face, level, node, r);
     }
     // HtPoint::visit's children test: a data node whose lowest candidate
     // misses the threshold of its parent's path bound accepts nothing below.
     while (face < 12u && level > 0u && level <= ht.order) {
       precise hreal ru = hreal(r) + ht.u;
       if (ru < htThreshold(gHtPathMin[level - 1u])) break;
-      htNextSibling(seed, faceDigits, face, level, node, r);
+      htNextSibling(faceDigits, face, level, node, r);
     }
     finished = face == 12u;
   }
