@@ -201,7 +201,7 @@ struct GpuRenderer::Impl {
   vk::Buffer pixelState;   // GpuPixelState per tile pixel
   vk::Buffer tsisScratch;  // GpuTsisSlot per region and tile pixel
   vk::Buffer wisScratch;   // HT_WIS_TOP_NODES doubles per tile pixel
-  vk::Buffer htPending;    // GpuHtPending per slot and tile pixel
+  vk::Buffer htPending;    // per tile pixel its pending samples and recorded leaves
   vk::Buffer frontierScratch;  // ht-frontier: GpuFrontierScene::pixelBytes per tile pixel
   // The method's tables, uploaded at their first render (the scene struct
   // uploaded again), with what they were made from.
@@ -649,7 +649,8 @@ std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettin
   const VkDeviceSize frontierBytes = tilePixels * frontier.pixelBytes;
   if (frontierMethod && frontierScratch.size() < frontierBytes)
     frontierScratch = vk::Buffer(ctx, frontierBytes, vk::MemoryUse::DeviceLocal);
-  const VkDeviceSize pendingBytes = tilePixels * HT_PENDING_SLOTS * sizeof(GpuHtPending);
+  static_assert(HT_QUEUE_BYTES == HT_PENDING_SLOTS * sizeof(GpuHtPending) + HT_LEAF_SLOTS * sizeof(GpuHtLeaf));
+  const VkDeviceSize pendingBytes = tilePixels * HT_QUEUE_BYTES;
   if (htMethod && htPending.size() < pendingBytes)
     htPending = vk::Buffer(ctx, pendingBytes, vk::MemoryUse::DeviceLocal);
   const VkDeviceSize logBytes = tilePixels * HT_SAMPLE_LOG_SLOTS * sizeof(GpuHtSample);

@@ -85,7 +85,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
     // The driver with its shader compiler (LLVM in lavapipe), as measured.
     gpu += kVulkanBytes;
     gpu += radiance + trees + sat;
-    if (isHt(in.method)) gpu += nodes * 20 + (uint64_t(32) << 20);  // geometry; a tile's pending samples
+    if (isHt(in.method)) gpu += nodes * 20 + (uint64_t(48) << 20);  // geometry; a tile's pending samples and leaves
     // ht-frontier: geometry, colour bins; a tile's tables (GpuRenderer's kScratchBytes at most).
     if (in.method == Method::HtFrontier) gpu += nodes * 21 + (uint64_t(96) << 20);
     gpu += image * 12;  // the readback of the tiles, gathered

@@ -73,6 +73,7 @@
 #define HT_MAX_WALK_LEVEL 24  // ht*: deepest (virtual) level of the walk, HtOptions::maxLevel
 #define HT_SAMPLE_LOG_SLOTS 64
 #define HT_PENDING_SLOTS 8  // ht*: accepted samples a pixel holds before shading them (GpuHtPending)
+#define HT_LEAF_SLOTS 32  // ht*: leaves a pixel's walk records before accepting in them (GpuHtLeaf)
 // ht* with table bounds: BrdfTable's sizes (host/brdf_table.h); per material
 // HT_BRDF_TABLE_FLOATS floats: the averages, then the max pyramid's levels.
 #define HT_BRDF_TABLE_THETA_O 16
@@ -221,9 +222,8 @@ struct GpuHtSample {
   float weight;     // 1 / (s h)
 };
 
-// ht*: an accepted sample waiting to be shaded. The traversal loop only
-// bounds, descends and accepts; a second loop jitters, shades and sums the
-// samples in the order accepted (ht.glsl).
+// ht*: an accepted sample waiting to be shaded. A loop of its own jitters,
+// shades and sums the samples in the order accepted (ht.glsl).
 struct GpuHtPending {
   uint64_t sx;  // hreal bits: the sample's sub-cell (sx, sy) of a cells x cells grid
   uint64_t sy;
@@ -237,6 +237,21 @@ struct GpuHtPending {
   uint averaged;  // biased: the BRDF at brdfDir
   vec3 brdfDir;   // HEALPix frame
 };
+
+// ht*: a node the walk reached and left to the second loop: a leaf of the
+// map whose lowest candidate passed its bounds, to be valued and accepted
+// in, or a biased stop, one averaged sample. A pixel's pending samples and
+// then its leaves fill HT_QUEUE_BYTES of GpuPush::htPending.
+struct GpuHtLeaf {
+  uint64_t r;       // the node's lowest candidate
+  uint node;
+  uint level;
+  float h;          // a leaf: the path's smallest bound, then its value; a stop: its sample's h
+  float brdfBound;  // a leaf: HT's BRDF bound over it
+  uint visibility;  // a leaf: its visibility class
+  uint stop;        // 1: a biased stop
+};
+#define HT_QUEUE_BYTES (HT_PENDING_SLOTS * 64 + HT_LEAF_SLOTS * 32)
 
 // Per tile pixel, kept from one dispatch of the tile to the next. A pixel's
 // estimate runs in batches of GpuPush::batchLimit samples (HT: traversal
@@ -267,6 +282,14 @@ struct GpuPixelState {
   uint htResume;        // 1: the traversal stopped inside an acceptance (the pending list was full)
   uint pad2;
   uint64_t htResumeI;   // hreal bits: the next candidate of that acceptance
+  // ht*: the recorded leaves (GpuHtLeaf), the next one to take, and the
+  // walk inside the one taken (htCellActive 1), below the map's order.
+  uint htLeafCount;
+  uint htLeafNext;
+  uint htCellActive;
+  uint htCellLevel;
+  uint64_t htCellNode;
+  uint64_t htCellR;
 };
 
 // ht-frontier (host/ht_frontier.h). A table: its nodes along the nested
@@ -354,6 +377,7 @@ struct GpuTsisSlot {
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer TsisScratch { GpuTsisSlot slots[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer PixelStates { GpuPixelState s[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer HtPendingList { GpuHtPending p[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 8) buffer HtLeafList { GpuHtLeaf v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer FrontierSceneRef { GpuFrontierScene f; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierNodes { GpuFrontierNode v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierHeaders { GpuFrontierHeader v[]; };
@@ -390,7 +414,7 @@ struct GpuPush {
   uint batchLimit;  // samples (ht*: traversal steps) per pixel and dispatch
   uint canaryLoops; // iterations of the loop that tells whether loops were cut short
   uint canaryZero;  // always 0: keeps the compiler from folding that loop away
-  HT_CHUNK_REF(HtPendingList) htPending;  // ht*: GpuHtPending[HT_PENDING_SLOTS per tile pixel]
+  HT_CHUNK_REF(HtPendingList) htPending;  // ht*: HT_QUEUE_BYTES per tile pixel
   uint64_t frontierScratch;  // ht-frontier: GpuFrontierScene::pixelBytes per tile pixel
 };
 
@@ -420,11 +444,12 @@ static_assert(sizeof(GpuPush) == 128 && offsetof(GpuPush, frontierScratch) == 12
               offsetof(GpuPush, tsisScratch) == 64 && offsetof(GpuPush, wisScratch) == 72 &&
               offsetof(GpuPush, wisOrder) == 80 && offsetof(GpuPush, pixelState) == 88 &&
               offsetof(GpuPush, batch) == 96 && offsetof(GpuPush, canaryLoops) == 104);
-static_assert(sizeof(GpuPixelState) == 176 && offsetof(GpuPixelState, htResumeI) == 168 && offsetof(GpuPixelState, rng) == 24 &&
+static_assert(sizeof(GpuPixelState) == 208 && offsetof(GpuPixelState, htCellNode) == 192 && offsetof(GpuPixelState, htResumeI) == 168 && offsetof(GpuPixelState, rng) == 24 &&
               offsetof(GpuPixelState, samplerSeed) == 48 && offsetof(GpuPixelState, htLeafH) == 68 &&
               offsetof(GpuPixelState, htNode) == 72 && offsetof(GpuPixelState, htPathMin) == 104);
 static_assert(sizeof(GpuTsisSlot) == 56 && offsetof(GpuTsisSlot, energy) == 24 && offsetof(GpuTsisSlot, cdf) == 48);
 static_assert(offsetof(GpuPush, htFlags) == 36 && offsetof(GpuPush, htSampleLog) == 52);
+static_assert(sizeof(GpuHtLeaf) == 32 && offsetof(GpuHtLeaf, h) == 16);
 static_assert(sizeof(GpuHtPending) == 64 && offsetof(GpuHtPending, cellOrder) == 24 &&
               offsetof(GpuHtPending, brdfDir) == 52);
 static_assert(sizeof(GpuHtSample) == 32 && offsetof(GpuHtSample, candidate) == 16 && offsetof(GpuHtSample, level) == 24);

@@ -1,7 +1,8 @@
 // The seed's hierarchical thresholding (ht.glsl): ht, ht-vis, ht-biased and
 // ht-vis-biased, accepting the CPU's candidates for the same pixel and seed.
-// A batch runs pc.batchLimit steps of the stackless traversal; the walk's
-// position and the path's minima carry over in GpuPixelState.
+// A batch runs pc.batchLimit steps of the stackless traversal; the walks'
+// positions, the recorded leaves and the path's minima carry over in
+// GpuPixelState and the pixel's queue.
 #version 460
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_scalar_block_layout : require
@@ -18,13 +19,20 @@ void storeWalk(HtWalk w) {
   gPixel.htLevel = w.level;
   gPixel.htNode = w.node;
   gPixel.htR = w.r;
+  gPixel.htLeafCount = w.leafCount;
+  gPixel.htLeafNext = w.leafNext;
+  gPixel.htCellActive = w.cellActive ? 1u : 0u;
+  gPixel.htCellLevel = w.cellLevel;
+  gPixel.htCellNode = w.cellNode;
+  gPixel.htCellR = w.cellR;
   gPixel.htLeafH = w.leafH;
   gPixel.htResume = w.resume ? 1u : 0u;
   gPixel.htResumeI = hrealToBits(w.resumeI);
 }
 HtWalk loadWalk() {
-  return HtWalk(gPixel.htSeed, gPixel.htFace, gPixel.htLevel, gPixel.htNode, gPixel.htR, gPixel.htLeafH,
-                gPixel.htResume != 0u, hrealFromBits(gPixel.htResumeI));
+  return HtWalk(gPixel.htSeed, gPixel.htFace, gPixel.htLevel, gPixel.htNode, gPixel.htR, gPixel.htLeafCount,
+                gPixel.htLeafNext, gPixel.htCellActive != 0u, gPixel.htCellLevel, gPixel.htCellNode, gPixel.htCellR,
+                gPixel.htLeafH, gPixel.htResume != 0u, hrealFromBits(gPixel.htResumeI));
 }
 
 void main() {

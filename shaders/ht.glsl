@@ -4,13 +4,18 @@
 //
 // The CPU's recursion becomes a stackless walk (DESIGN.md section 10): the
 // state is (level, node, lowest candidate r); going down adds a digit of the
-// node's permutation, the next sibling recomputes the parent's permutation
-// from the stateless hash, going up takes r mod stride. The one value per
-// level the hash cannot give back is the smallest bound on the path
-// (leafValue and the biased stop clamp to it), kept for data levels only.
-// Accepted samples wait in a short list (GpuHtPending) and are jittered and
-// shaded by a loop of their own, in the order accepted: the walk's loop, in
-// which the lanes of a SIMD group diverge, carries no shading.
+// node's permutation, the next sibling takes the parent's permutation and
+// candidate, kept per level of the path (a resumed walk recomputes them
+// from the stateless hash). The one value per level the hash cannot give
+// back is the smallest bound on the path (leafValue and the biased stop
+// clamp to it), kept for data levels only.
+//
+// The work runs in loops of their own, as a wavefront of one pixel: the
+// walk bounds and descends and records the leaves it reaches; a loop values
+// them; a loop walks their virtual cells and accepts candidates; a loop
+// jitters and shades the accepted samples, in the order accepted. Each
+// loop's body is small, which matters where the lanes of a SIMD group run
+// every branch of a loop's body (llvmpipe) or wait for each other (GPUs).
 //
 // Decisions compare the same doubles as the CPU (HT_FP64). They can differ
 // where a bound goes through pow, cos, asin or acos (an ulp or two off
@@ -356,35 +361,55 @@ uint htCompressBits(uint64_t v) {
 
 
 // estimateHt for the ht* methods, in batches: htBegin after estimateDirect's
-// draw of the pixel seed, then htSteps until the traversal is done. One step
-// is one call of HtPoint::visit (data levels, biased stop and leafValue
-// included) or of HtPoint::visitVirtual.
+// draw of the pixel seed, then htSteps until the traversal is done.
+//
+// The traversal runs as two loops. The walk bounds the data levels'
+// nodes and descends (HtPoint::visit up to the leaf value); the leaves
+// whose lowest candidate passes the path's bounds, and the biased stops,
+// it records in order. The second loop takes the recorded nodes in that
+// order: a leaf's value (HtPoint::leafValue), the walk through its virtual
+// cells (HtPoint::visitVirtual) and the acceptance, whose samples wait in
+// the pending list. The walk's loop, where lanes diverge most, carries no
+// leaf value, cell and acceptance code. One step is a node of either loop.
 struct HtWalk {
   uint seed;
+  // The walk over the data levels.
   uint face;
   uint level;
   uint64_t node;
   uint64_t r;  // lowest candidate of the node
+  // The recorded leaves and the next to take.
+  uint leafCount;
+  uint leafNext;
+  // The walk through the cells of the leaf taken, while cellActive.
+  bool cellActive;
+  uint cellLevel;
+  uint64_t cellNode;
+  uint64_t cellR;
   float leafH;
-  // The pending list filled up inside the node's acceptance: the node is
+  // The pending list filled up inside the cell's acceptance: the cell is
   // visited again, its acceptance going on from candidate resumeI.
   bool resume;
   hreal resumeI;
 };
 
+// The pixel's pending samples and recorded leaves (HT_QUEUE_BYTES).
+uint64_t htQueue() {
+  return uint64_t(pc.htPending) +
+         uint64_t(gl_GlobalInvocationID.y * pc.tileWidth + gl_GlobalInvocationID.x) * uint64_t(HT_QUEUE_BYTES);
+}
+HtPendingList htPendingList() { return HtPendingList(htQueue()); }
+HtLeafList htLeafList() { return HtLeafList(htQueue() + uint64_t(HT_PENDING_SLOTS * 64)); }
+
 // The samples accepted and not yet shaded, in the order accepted.
 uint gHtPending = 0u;
-uint htPendingBase() {
-  return (gl_GlobalInvocationID.y * pc.tileWidth + gl_GlobalInvocationID.x) * uint(HT_PENDING_SLOTS);
-}
 
 // Jitters each pending sample in its cell (sample k of the sampler,
 // dimension 0), shades it and adds it to the sum, in the order accepted.
 void htShadePending(Shading sh, inout Sampler smp) {
-  HtPendingList list = HtPendingList(pc.htPending);
-  uint base = htPendingBase();
+  HtPendingList list = htPendingList();
   for (uint k = 0u; k < gHtPending; ++k) {
-    GpuHtPending p = list.p[base + k];
+    GpuHtPending p = list.p[k];
     samplerStart(smp, p.sampleIndex);
     vec2 j = samplerNext2D(smp);
     hreal cells = hreal(p.cells);
@@ -400,41 +425,56 @@ void htShadePending(Shading sh, inout Sampler smp) {
 // The smallest bound on the path, per data level (the one value the hash cannot give back).
 float gHtPathMin[HT_MAX_ORDER + 1];
 
-// Per level of the walk's path: the node's children's permutation and its
+// Per level of a walk's path: the node's children's permutation and its
 // lowest candidate, so that a step to the next sibling or up to the parent
-// neither hashes nor divides.
+// neither hashes nor divides. The walk over the data levels keeps the
+// levels below the map's order, the walk through a leaf's cells the rest.
 uint gHtWalkPerm[HT_MAX_WALK_LEVEL];
 uint64_t gHtWalkR[HT_MAX_WALK_LEVEL];
 
 // The path's permutations and candidates from the hash, for a walk resumed
-// at (level, node) with lowest candidate r.
-void htRestorePath(uint seed, uint level, uint64_t node, uint64_t r) {
-  for (uint l = 0u; l < level; ++l) {
+// at (level, node) with lowest candidate r: levels `from` to level - 1.
+void htRestorePath(uint seed, uint from, uint level, uint64_t node, uint64_t r) {
+  for (uint l = from; l < level; ++l) {
     gHtWalkPerm[l] = htPermutation(seed, l, node >> (2u * (level - l)));
     gHtWalkR[l] = r % htStride(l);
   }
 }
 
-// The walk's next node after (level, node) and everything below it: the
-// next sibling, going up as far as needed; after the last face, face 12.
-void htNextSibling(uint64_t faceDigits, inout uint face, inout uint level, inout uint64_t node, inout uint64_t r) {
-  for (;;) {
-    if (level == 0u) {
-      ++face;
-      node = uint64_t(face);
-      r = (faceDigits >> (4u * face)) & 15ul;
-      return;
-    }
+// Down to the first child of (level, node).
+void htDescend(uint seed, inout uint level, inout uint64_t node, inout uint64_t r) {
+  uint perm = htPermutation(seed, level, node);
+  gHtWalkPerm[level] = perm;
+  gHtWalkR[level] = r;
+  r += uint64_t(htDigit(perm, 0u)) * htStride(level);
+  node *= 4ul;
+  ++level;
+}
+
+// The next node after (level, node) and everything below it, not going up
+// past level `top`: the next sibling, going up as far as needed. False when
+// (level, node) was the last below top's node.
+bool htNextBelow(uint top, inout uint level, inout uint64_t node, inout uint64_t r) {
+  for (; level > top; --level) {
     uint j = uint(node & 3ul);
     if (j < 3u) {
       r = gHtWalkR[level - 1u] + uint64_t(htDigit(gHtWalkPerm[level - 1u], j + 1u)) * htStride(level - 1u);
       ++node;
-      return;
+      return true;
     }
     r = gHtWalkR[level - 1u];
     node >>= 2;
-    --level;
   }
+  return false;
+}
+
+// The data walk's next node after (level, node) and everything below it;
+// after the last face, face 12.
+void htNextSibling(uint64_t faceDigits, inout uint face, inout uint level, inout uint64_t node, inout uint64_t r) {
+  if (htNextBelow(0u, level, node, r)) return;
+  ++face;
+  node = uint64_t(face);
+  r = (faceDigits >> (4u * face)) & 15ul;
 }
 
 // False when the pixel has nothing to sample.
@@ -444,6 +484,12 @@ bool htBegin(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout ui
   w.level = 0u;
   w.node = 0ul;
   w.r = 0ul;
+  w.leafCount = 0u;
+  w.leafNext = 0u;
+  w.cellActive = false;
+  w.cellLevel = 0u;
+  w.cellNode = 0ul;
+  w.cellR = 0ul;
   w.leafH = 0.0;
   w.resume = false;
   w.resumeI = 0.0;
@@ -460,98 +506,131 @@ bool htBegin(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout ui
   return true;
 }
 
-// At most `steps` steps of the walk; true once it has visited every face.
-// `taken`: the steps it took. The walk's loop bounds, descends and records
-// accepted samples only; whenever HT_PENDING_SLOTS are waiting, and at the
-// end, a second loop shades them: the traversal, where the lanes of a SIMD
-// group diverge, stays small.
-bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint taken) {
+// HtPoint::leafValue of a recorded leaf.
+float htLeafValue(GpuHtLeaf leaf) {
+  uint i = levelOffset(ht.order) + leaf.node;
+  float envAvg = treeAvg(i);
+  if (envAvg <= 0.0 || leaf.h <= 0.0 || leaf.brdfBound <= 0.0 || leaf.visibility == 0u) return 0.0;
+  precise float floorBound = pc.htBrdfFloor * leaf.brdfBound;
+  precise float h = envAvg * max(htBrdfValue(htCenter(i)), floorBound);
+  if (leaf.visibility == 2u) h = h * htVisibleFraction(leaf.node);
+  return min(h, leaf.h);
+}
+
+// The walk over the data levels, up to `steps` steps and until HT_LEAF_SLOTS
+// nodes are recorded (w.leafCount, from 0).
+void htWalk(inout HtWalk w, uint steps, inout uint step) {
   const bool biased = (ht.flags & HT_FLAG_BIASED) != 0u;
   const bool visibility = (ht.flags & HT_FLAG_VISIBILITY) != 0u;
   const uint64_t faceDigits = htFaceDigits(w.seed);
-  uint seed = w.seed;
+  HtLeafList leaves = htLeafList();
   uint face = w.face;
   uint level = w.level;
   uint64_t node = w.node;
   uint64_t r = w.r;
-  float leafH = w.leafH;
-  bool finished = face == 12u;
-  bool resume = w.resume;
-  hreal resumeI = w.resumeI;
-  HtPendingList pending = HtPendingList(pc.htPending);
-  const uint pendingBase = htPendingBase();
-  uint step = 0u;
-  if (!finished) htRestorePath(seed, level, node, r);
-  while (step < steps && !finished) {
-  for (; step < steps && !finished && gHtPending < uint(HT_PENDING_SLOTS); ++step) {
+  uint count = 0u;
+  for (; step < steps && face < 12u && count < uint(HT_LEAF_SLOTS); ++step) {
+    ++gHtNodes;
+    HtNode n = htNode(level, uint(node), biased);
+    float pm = level == 0u ? n.bound : min(gHtPathMin[level - 1u], n.bound);
+    gHtPathMin[level] = pm;
+    precise hreal ru = hreal(r) + ht.u;
+    precise hreal t = htThreshold(n.bound);
     bool descend = false;
-    bool virtualCell = level > ht.order;
-    // Candidates r, r + step, ... below acceptT are accepted in the cell
+    if (!(ru >= t)) {
+      bool stopped = false;
+      if (biased) {
+        // HtPoint::stopEarly: a smooth node holding one acceptable candidate takes it, with the node's average.
+        float margin = (ht.flags & HT_FLAG_BRDF_TABLE) != 0u ? HT_BRDF_TABLE_MARGIN : 1.0;
+        precise float smoothBound = (1.0 + pc.htBiasedSmoothness) * n.brdfValue * margin;
+        precise float twice = 2.0 * n.envAvg;
+        precise float product = n.envAvg * n.brdfValue;
+        float h = min(pm, product);
+        if (n.brdfValue > 0.0 && !(n.brdfBound > smoothBound) && !(n.envMax > twice) &&
+            (!visibility || n.visibility == 1u) && h > 0.0) {
+          precise hreal th = htThreshold(h);
+          precise hreal next = hreal(r) + hreal(htStride(level)) + ht.u;
+          stopped = ru >= th || !(next < th);
+          if (stopped && !(ru >= th)) leaves.v[count++] = GpuHtLeaf(r, uint(node), level, h, 0.0, 0u, 1u);
+        }
+      }
+      if (!stopped && level < ht.order) {
+        descend = true;
+      } else if (!stopped) {
+        leaves.v[count++] = GpuHtLeaf(r, uint(node), level, pm, n.brdfBound, n.visibility, 0u);
+      }
+    }
+    if (descend) {
+      htDescend(w.seed, level, node, r);
+    } else {
+      htNextSibling(faceDigits, face, level, node, r);
+    }
+    // HtPoint::visit's children test: a data node whose lowest candidate
+    // misses the threshold of its parent's path bound accepts nothing below.
+    while (face < 12u && level > 0u) {
+      precise hreal ru = hreal(r) + ht.u;
+      if (ru < htThreshold(gHtPathMin[level - 1u])) break;
+      htNextSibling(faceDigits, face, level, node, r);
+    }
+  }
+  w.face = face;
+  w.level = level;
+  w.node = node;
+  w.r = r;
+  w.leafCount = count;
+  w.leafNext = 0u;
+  // The leaves' values, in a loop of their own: h becomes HtPoint::leafValue.
+  for (uint k = 0u; k < count; ++k)
+    if (leaves.v[k].stop == 0u) leaves.v[k].h = htLeafValue(leaves.v[k]);
+}
+
+// The second loop: the recorded nodes in order, up to `steps` steps and
+// until the pending list is full.
+void htCells(inout HtWalk w, uint steps, inout uint step) {
+  HtLeafList leaves = htLeafList();
+  HtPendingList pending = htPendingList();
+  for (; step < steps && (w.cellActive || w.leafNext < w.leafCount) && gHtPending < uint(HT_PENDING_SLOTS); ++step) {
+    // The cell's candidates r, r + step, ... below acceptT are accepted in it
     // (cellPix at cellOrder, sub-cell (sx, sy) of a cells x cells grid).
     bool accept = false, averaged = false;
     hreal acceptT = 0.0, acceptStep = 0.0, sx = 0.0, sy = 0.0, cells = 1.0;
-    uint cellOrder = level, cellPix = 0u;
+    uint level = w.cellLevel, cellOrder = w.cellLevel, cellPix = 0u;
+    uint64_t node = w.cellNode, r = w.cellR;
     float sampleH = 0.0;
     vec3 brdfDir = vec3(0.0);
-    if (!virtualCell) {
-      if (!resume) ++gHtNodes;
-      HtNode n = htNode(level, uint(node), biased || level == ht.order);
-      float pm = level == 0u ? n.bound : min(gHtPathMin[level - 1u], n.bound);
-      gHtPathMin[level] = pm;
-      precise hreal ru = hreal(r) + ht.u;
-      precise hreal t = htThreshold(n.bound);
-      if (!(ru >= t)) {
-        bool stopped = false;
-        if (biased) {
-          // HtPoint::stopEarly: a smooth node holding one acceptable candidate takes it, with the node's average.
-          float margin = (ht.flags & HT_FLAG_BRDF_TABLE) != 0u ? HT_BRDF_TABLE_MARGIN : 1.0;
-          precise float smoothBound = (1.0 + pc.htBiasedSmoothness) * n.brdfValue * margin;
-          precise float twice = 2.0 * n.envAvg;
-          precise float product = n.envAvg * n.brdfValue;
-          float h = min(pm, product);
-          if (n.brdfValue > 0.0 && !(n.brdfBound > smoothBound) && !(n.envMax > twice) &&
-              (!visibility || n.visibility == 1u) && h > 0.0) {
-            precise hreal th = htThreshold(h);
-            precise hreal step = hreal(htStride(level));
-            precise hreal next = hreal(r) + step + ht.u;
-            stopped = ru >= th || !(next < th);
-            if (stopped && !(ru >= th)) {
-              accept = averaged = true;
-              acceptT = th;
-              acceptStep = step;
-              cellPix = uint(node);
-              sampleH = h;
-              brdfDir = n.centre;
-            }
-          }
-        }
-        if (!stopped && level < ht.order) {
-          descend = true;
-        } else if (!stopped) {
-          // HtPoint::leafValue
-          leafH = 0.0;
-          if (!(n.envAvg <= 0.0 || pm <= 0.0 || n.brdfBound <= 0.0) && n.visibility != 0u) {
-            precise float floorBound = pc.htBrdfFloor * n.brdfBound;
-            precise float h = n.envAvg * max(n.brdfValue, floorBound);
-            if (n.visibility == 2u) h = h * htVisibleFraction(uint(node));
-            leafH = min(h, pm);
-          }
-          virtualCell = leafH > 0.0;
-        }
+    bool descend = false;
+    if (!w.cellActive) {
+      GpuHtLeaf leaf = leaves.v[w.leafNext++];
+      level = leaf.level;
+      node = uint64_t(leaf.node);
+      r = leaf.r;
+      if (leaf.stop != 0u) {
+        // A biased stop: its one candidate, with the node's average.
+        accept = averaged = true;
+        acceptT = htThreshold(leaf.h);
+        acceptStep = hreal(htStride(level));
+        cellOrder = level;
+        cellPix = leaf.node;
+        sampleH = leaf.h;
+        brdfDir = htCenter(levelOffset(level) + leaf.node);
+      } else {
+        w.leafH = leaf.h;
+        w.cellActive = w.leafH > 0.0;
+        w.resume = false;
       }
     }
-    if (virtualCell) {
-      precise hreal t = htThreshold(leafH);
+    if (w.cellActive) {
+      precise hreal t = htThreshold(w.leafH);
       precise hreal ru = hreal(r) + ht.u;
       if (!(ru >= t)) {
-        precise hreal step = hreal(htStride(level));
-        precise hreal next = hreal(r) + step + ht.u;
+        precise hreal stride = hreal(htStride(level));
+        precise hreal next = hreal(r) + stride + ht.u;
         if (next < t && level < ht.maxLevel) {
           descend = true;
         } else {
           accept = true;
           acceptT = t;
-          acceptStep = step;
+          acceptStep = stride;
           uint k = level - ht.order;
           uint64_t local = node & ((1ul << (2u * k)) - 1ul);
           cellOrder = ht.order;
@@ -559,62 +638,63 @@ bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint
           sx = hreal(htCompressBits(local));
           sy = hreal(htCompressBits(local >> 1));
           cells = hreal(1u << k);
-          sampleH = leafH;
+          sampleH = w.leafH;
         }
       }
     }
+    bool full = false;
     if (accept) {
-      precise hreal i = resume ? resumeI : hreal(r);
-      resume = false;
+      precise hreal i = w.resume ? w.resumeI : hreal(r);
+      w.resume = false;
       for (;;) {
         precise hreal iu = i + ht.u;
         if (!(iu < acceptT)) break;
         if (gHtPending == uint(HT_PENDING_SLOTS)) {
-          resume = true;
-          resumeI = i;
+          full = true;
           break;
         }
         // Sample k's point inside its cell: sample index k, dimension 0 (htShadePending).
-        pending.p[pendingBase + gHtPending] =
-            GpuHtPending(hrealToBits(sx), hrealToBits(sy), uint64_t(i), cellOrder, cellPix, gHtSamples, level,
-                         float(cells), sampleH, averaged ? 1u : 0u, brdfDir);
+        pending.p[gHtPending] = GpuHtPending(hrealToBits(sx), hrealToBits(sy), uint64_t(i), cellOrder, cellPix,
+                                             gHtSamples, level, float(cells), sampleH, averaged ? 1u : 0u, brdfDir);
         ++gHtPending;
         ++gHtSamples;
         i = i + acceptStep;
       }
-      if (resume) {
-        ++step;
-        break;  // this node again once the pending samples are shaded
+      if (full) {
+        // This cell again once the pending samples are shaded (a stop
+        // holds one candidate, so never fills the list).
+        w.resume = true;
+        w.resumeI = i;
       }
     }
-    if (descend) {
-      uint perm = htPermutation(seed, level, node);
-      gHtWalkPerm[level] = perm;
-      gHtWalkR[level] = r;
-      r += uint64_t(htDigit(perm, 0u)) * htStride(level);
-      node *= 4ul;
-      ++level;
-    } else {
-      htNextSibling(faceDigits, face, level, node, r);
+    if (w.cellActive && !full) {
+      if (descend) {
+        htDescend(w.seed, level, node, r);
+      } else {
+        w.cellActive = htNextBelow(ht.order, level, node, r);
+      }
     }
-    // HtPoint::visit's children test: a data node whose lowest candidate
-    // misses the threshold of its parent's path bound accepts nothing below.
-    while (face < 12u && level > 0u && level <= ht.order) {
-      precise hreal ru = hreal(r) + ht.u;
-      if (ru < htThreshold(gHtPathMin[level - 1u])) break;
-      htNextSibling(faceDigits, face, level, node, r);
-    }
-    finished = face == 12u;
+    w.cellLevel = level;
+    w.cellNode = node;
+    w.cellR = r;
   }
-  htShadePending(sh, smp);
+}
+
+// At most `steps` steps of the traversal; true once it is done. `taken`:
+// the steps it took. Whenever the recorded nodes are all taken, the walk
+// records more; whenever HT_PENDING_SLOTS samples wait, and at the end, a
+// third loop shades them.
+bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint taken) {
+  uint step = 0u;
+  if (w.cellActive) htRestorePath(w.seed, ht.order, w.cellLevel, w.cellNode, w.cellR);
+  if (w.face < 12u) htRestorePath(w.seed, 0u, w.level, w.node, w.r);
+  bool finished = w.face == 12u && !w.cellActive && w.leafNext == w.leafCount;
+  while (step < steps && !finished) {
+    if (!w.cellActive && w.leafNext == w.leafCount) htWalk(w, steps, step);
+    htCells(w, steps, step);
+    htShadePending(sh, smp);
+    finished = w.face == 12u && !w.cellActive && w.leafNext == w.leafCount;
   }
-  w.resume = resume;
-  w.resumeI = resumeI;
-  w.face = face;
-  w.level = level;
-  w.node = node;
-  w.r = r;
-  w.leafH = leafH;
   taken = step;
   return finished;
 }
