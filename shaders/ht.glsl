@@ -27,7 +27,7 @@
 #include "ht_table.glsl"
 #include "shading.glsl"
 
-#define HT_MAX_FRONTIER (12 + 3 * HT_MAX_BUDGET_REFINEMENTS)
+#define HT_MAX_FRONTIER (12 + 4 * HT_MAX_BUDGET_REFINEMENTS)
 
 // The 24 permutations of {0, 1, 2, 3} in lexicographic order, digit j in bits 2j..2j+1.
 const uint kHtPermutations[24] = uint[24](0xE4u, 0xB4u, 0xD8u, 0x78u, 0x9Cu, 0x6Cu, 0xE1u, 0xB1u, 0xC9u, 0x39u,
@@ -278,14 +278,16 @@ hreal gHtFrontierMass[HT_MAX_FRONTIER];
 float gHtFrontierEstimate[HT_MAX_FRONTIER];  // HtPoint::nodeEstimate
 
 hreal htEstimateBudget() {
-  uint size = 0u;
+  // A split node stays in place with mass -1 (the order of the others is
+  // the CPU's), so no split moves the nodes after it.
+  uint size = 0u, live = 0u;
   uint refinements = min((pc.htFlags >> 8) & 0xFFu, uint(HT_MAX_BUDGET_REFINEMENTS));
   uint pushLevel = 0u, pushFirst = 0u, pushCount = 12u;
   for (uint k = 0u;; ++k) {
     for (uint j = 0u; j < pushCount; ++j) {
       HtNode n = htNode(pushLevel, pushFirst + j, true);
       precise hreal mass = hreal(n.bound) * htPixelSolidAngle(pushLevel);
-      if (mass > 0.0 && size < uint(HT_MAX_FRONTIER)) {
+      if (mass > 0.0) {
         precise float floorBound = pc.htBrdfFloor * n.brdfBound;
         float vis = n.visibility == 0u ? 0.0 : n.visibility == 1u ? 1.0 : 0.5;
         precise float estimate = n.envAvg * max(n.brdfValue, floorBound) * vis;
@@ -294,28 +296,25 @@ hreal htEstimateBudget() {
         gHtFrontierMass[size] = mass;
         gHtFrontierEstimate[size] = estimate;
         ++size;
+        ++live;
       }
     }
-    if (k >= refinements || size == 0u) break;
+    if (k >= refinements || live == 0u) break;
     uint best = 0u;
     for (uint i = 1u; i < size; ++i)
       if (gHtFrontierMass[best] < gHtFrontierMass[i]) best = i;
     uint level = gHtFrontierLevel[best];
     uint node = gHtFrontierNode[best];
     if (level >= ht.order) break;
-    for (uint i = best + 1u; i < size; ++i) {
-      gHtFrontierLevel[i - 1u] = gHtFrontierLevel[i];
-      gHtFrontierNode[i - 1u] = gHtFrontierNode[i];
-      gHtFrontierMass[i - 1u] = gHtFrontierMass[i];
-      gHtFrontierEstimate[i - 1u] = gHtFrontierEstimate[i];
-    }
-    --size;
+    gHtFrontierMass[best] = -1.0;
+    --live;
     pushLevel = level + 1u;
     pushFirst = 4u * node;
     pushCount = 4u;
   }
   precise hreal c = 0.0;
   for (uint i = 0u; i < size; ++i) {
+    if (gHtFrontierMass[i] < 0.0) continue;
     precise hreal term = hreal(gHtFrontierEstimate[i]) * htPixelSolidAngle(gHtFrontierLevel[i]);
     c = c + term;
   }
@@ -452,20 +451,23 @@ void htDescend(uint seed, inout uint level, inout uint64_t node, inout uint64_t 
 }
 
 // The next node after (level, node) and everything below it, not going up
-// past level `top`: the next sibling, going up as far as needed. False when
-// (level, node) was the last below top's node.
+// past level `top`: the next sibling, going up over the last children on
+// the way (the trailing digits 3 of the nested index), without a loop.
+// False when (level, node) was the last below top's node.
 bool htNextBelow(uint top, inout uint level, inout uint64_t node, inout uint64_t r) {
-  for (; level > top; --level) {
-    uint j = uint(node & 3ul);
-    if (j < 3u) {
-      r = gHtWalkR[level - 1u] + uint64_t(htDigit(gHtWalkPerm[level - 1u], j + 1u)) * htStride(level - 1u);
-      ++node;
-      return true;
-    }
-    r = gHtWalkR[level - 1u];
-    node >>= 2;
+  uint lo = ~uint(node), hi = ~uint(node >> 32);
+  uint ones = lo != 0u ? uint(findLSB(lo)) : hi != 0u ? 32u + uint(findLSB(hi)) : 64u;
+  uint up = min(ones / 2u, level - top);
+  if (up > 0u) {
+    level -= up;
+    node >>= 2u * up;
+    r = gHtWalkR[level];
   }
-  return false;
+  if (level == top) return false;
+  uint j = uint(node & 3ul);
+  r = gHtWalkR[level - 1u] + uint64_t(htDigit(gHtWalkPerm[level - 1u], j + 1u)) * htStride(level - 1u);
+  ++node;
+  return true;
 }
 
 // The data walk's next node after (level, node) and everything below it;
