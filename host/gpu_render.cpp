@@ -107,8 +107,6 @@ vk::Buffer uploadArray(vk::Context& ctx, const std::vector<T>& items) {
 // Loop iterations one pixel may spend in one dispatch, a quarter of what
 // llvmpipe allows an invocation in all (GpuPixelState).
 constexpr uint64_t kLoopIterationsPerBatch = 16384;
-// ht*: tiles at most this wide and high (their pending samples).
-constexpr uint32_t kHtMaxTileSide = 256;
 // Batches a submission holds, at most.
 constexpr uint64_t kBatchesPerSubmission = 64;
 
@@ -626,7 +624,7 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
 std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettings& s) {
   const bool htMethod = methodInfo(s.method).family == Family::Ht;
   const bool frontierMethod = s.method == Method::HtFrontier;
-  uint32_t side = htMethod ? std::min<uint32_t>(maxTileSide, kHtMaxTileSide) : maxTileSide;
+  uint32_t side = htMethod ? std::min<uint32_t>(maxTileSide, HT_MAX_TILE_SIDE) : maxTileSide;
   while (side > kWorkgroupSize && uint64_t(side) * side * directionsPerPixel(s) > kDirectionsPerDispatch)
     side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
   while (frontierMethod && side > kWorkgroupSize && uint64_t(side) * side * frontier.pixelBytes > kScratchBytes)

@@ -18,6 +18,7 @@
 #include "tsis.h"
 #include "ht_frontier.h"
 #include "wis.h"
+#include "common.h"  // shaders/common.h
 
 namespace ht {
 
@@ -85,7 +86,12 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
     // The driver with its shader compiler (LLVM in lavapipe), as measured.
     gpu += kVulkanBytes;
     gpu += radiance + trees + sat;
-    if (isHt(in.method)) gpu += nodes * 20 + (uint64_t(48) << 20);  // geometry; a tile's pending samples and leaves
+    if (isHt(in.method)) {
+      // Geometry; per pixel of a tile its pending samples and recorded leaves.
+      const uint64_t tile =
+          uint64_t(std::min(in.width, HT_MAX_TILE_SIDE)) * uint64_t(std::min(in.height, HT_MAX_TILE_SIDE));
+      gpu += nodes * 20 + tile * HT_QUEUE_BYTES;
+    }
     // ht-frontier: geometry, colour bins; a tile's tables (GpuRenderer's kScratchBytes at most).
     if (in.method == Method::HtFrontier) gpu += nodes * 21 + (uint64_t(96) << 20);
     gpu += image * 12;  // the readback of the tiles, gathered

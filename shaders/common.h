@@ -252,6 +252,7 @@ struct GpuHtLeaf {
   uint stop;        // 1: a biased stop
 };
 #define HT_QUEUE_BYTES (HT_PENDING_SLOTS * 64 + HT_LEAF_SLOTS * 32)
+#define HT_MAX_TILE_SIDE 256  // ht*: tiles of at most 256 x 256 pixels, for their queues
 
 // Per tile pixel, kept from one dispatch of the tile to the next. A pixel's
 // estimate runs in batches of GpuPush::batchLimit samples (HT: traversal
