@@ -70,7 +70,6 @@ struct HtPoint {
 };
 HtPoint ht;
 vec3 gHtCapAxis[HT_MAX_CAPS];
-float gHtCapAngle[HT_MAX_CAPS];
 float gHtCapCos[HT_MAX_CAPS];
 // Per cap and data level: the cosines past which a node's cone lies inside
 // the cap, or meets it (HtPoint::Cap::cosInside, cosOutside).
@@ -216,7 +215,6 @@ HtNode htNode(uint level, uint node, bool withValue) {
 void htAddCap(vec3 axis, float angle) {
   if (ht.capCount >= uint(HT_MAX_CAPS)) return;  // the host refuses such scenes
   gHtCapAxis[ht.capCount] = axis;
-  gHtCapAngle[ht.capCount] = angle;
   gHtCapCos[ht.capCount] = cos(angle);
   for (uint level = 0u; level <= ht.order; ++level) {
     float rad = scene.htLevelRadius[level];
@@ -362,14 +360,15 @@ uint htCompressBits(uint64_t v) {
 // estimateHt for the ht* methods, in batches: htBegin after estimateDirect's
 // draw of the pixel seed, then htSteps until the traversal is done.
 //
-// The traversal runs as two loops. The walk bounds the data levels'
-// nodes and descends (HtPoint::visit up to the leaf value); the leaves
-// whose lowest candidate passes the path's bounds, and the biased stops,
-// it records in order. The second loop takes the recorded nodes in that
-// order: a leaf's value (HtPoint::leafValue), the walk through its virtual
-// cells (HtPoint::visitVirtual) and the acceptance, whose samples wait in
-// the pending list. The walk's loop, where lanes diverge most, carries no
-// leaf value, cell and acceptance code. One step is a node of either loop.
+// The walk bounds the data levels' nodes and descends (HtPoint::visit up
+// to the leaf value); the leaves whose lowest candidate passes the path's
+// bounds, and the biased stops, it records in order. A loop then gives the
+// leaves their values (HtPoint::leafValue), and the cells' loop takes the
+// recorded nodes in order: the walk through a leaf's virtual cells
+// (HtPoint::visitVirtual) and the acceptance, whose samples wait in the
+// pending list for the shading loop. The walk's loop, where lanes diverge
+// most, carries no leaf value, cell and acceptance code. One step is a node
+// of the walk or of the cells' loop.
 struct HtWalk {
   uint seed;
   // The walk over the data levels.
