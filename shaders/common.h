@@ -238,9 +238,9 @@ struct GpuHtPending {
   vec3 brdfDir;   // HEALPix frame
 };
 
-// ht*: a node the walk reached and left to the second loop: a leaf of the
-// map whose lowest candidate passed its bounds, to be valued and accepted
-// in, or a biased stop, one averaged sample. A pixel's pending samples and
+// ht*: a node the walk reached and left to the loops after it: a leaf of
+// the map whose lowest candidate passed its bounds, to be valued and
+// accepted in, or a biased stop, one averaged sample. A pixel's pending samples and
 // then its leaves fill HT_QUEUE_BYTES of GpuPush::htPending.
 struct GpuHtLeaf {
   uint64_t r;       // the node's lowest candidate

@@ -585,7 +585,7 @@ void htWalk(inout HtWalk w, uint steps, inout uint step) {
     if (leaves.v[k].stop == 0u) leaves.v[k].h = htLeafValue(leaves.v[k]);
 }
 
-// The second loop: the recorded nodes in order, up to `steps` steps and
+// The cells' loop: the recorded nodes in order, up to `steps` steps and
 // until the pending list is full.
 void htCells(inout HtWalk w, uint steps, inout uint step) {
   HtLeafList leaves = htLeafList();
@@ -683,8 +683,8 @@ void htCells(inout HtWalk w, uint steps, inout uint step) {
 
 // At most `steps` steps of the traversal; true once it is done. `taken`:
 // the steps it took. Whenever the recorded nodes are all taken, the walk
-// records more; whenever HT_PENDING_SLOTS samples wait, and at the end, a
-// third loop shades them.
+// records more; whenever HT_PENDING_SLOTS samples wait, and at the end, the
+// shading loop takes them.
 bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint taken) {
   uint step = 0u;
   if (w.cellActive) htRestorePath(w.seed, ht.order, w.cellLevel, w.cellNode, w.cellR);
