@@ -41,6 +41,7 @@ static_assert(uint32_t(SamplerKind::Independent) == HT_SAMPLER_INDEPENDENT &&
               uint32_t(SamplerKind::Stratified) == HT_SAMPLER_STRATIFIED);
 static_assert(FrontierTable::kSegments == HT_FRONTIER_SEGMENTS && kFrontierColourBins * 12 == HT_FRONTIER_SEGMENTS);
 static_assert(int(Method::HtFrontier) == HT_METHOD_HT_FRONTIER);
+static_assert(kFrontierLobeLevel == HT_FRONTIER_LOBE_LEVEL);
 static_assert(TsisPoint::kDefaultRegions == HT_TSIS_REGIONS && TsisTable::kMaxLevel == HT_TSIS_MAX_LEVEL);
 static_assert(WisPoint::kExactLevels == HT_WIS_EXACT_LEVELS && WisPoint::kMaxOrder == HT_WIS_MAX_ORDER &&
               MaxAvgTree::levelOffset(HT_WIS_EXACT_LEVELS + 1) == HT_WIS_TOP_NODES);
@@ -422,11 +423,10 @@ void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables
 namespace {
 
 // The normals (as a point on the plane sees them) of both sides of every
-// plane with a Lambert material: the shared tables ht-frontier uses.
+// plane: the shared tables ht-frontier uses.
 std::vector<glm::vec3> sharedFrontierNormals(const Scene& scene) {
   std::vector<glm::vec3> normals;
   for (const Plane& p : scene.planes) {
-    if (scene.materials[size_t(p.material)].type != MaterialType::Lambert) continue;
     for (const glm::vec3& side : {p.normal, -p.normal}) {
       const glm::vec3 n = frontierSurfaceNormal(scene.environment, side);
       if (std::find(normals.begin(), normals.end(), n) == normals.end()) normals.push_back(n);
@@ -466,7 +466,7 @@ void layOutFrontierScratch(uint32_t real, GpuFrontierScene& f) {
 
 // ht-frontier's GpuFrontierScene for this render: FrontierOptions as
 // estimateDirect sets them, the shared Lambert table of each side of each
-// plane with a Lambert material, and the layout of a pixel's scratch.
+// plane, and the layout of a pixel's scratch.
 void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTables& t) {
   const Scene& hs = *hostScene;
   const Environment& env = hs.environment;

@@ -221,11 +221,14 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
   productLevel_ = options.productLevel;
   brdfFloor_ = options.brdfFloor;
   partialVisibility_ = options.partialVisibility;
-  lambert_ = point.material.type == MaterialType::Lambert && !point.table;
+  const bool lambert = point.material.type == MaterialType::Lambert;
+  const bool shared = sp.flat && !point.table && options.sharedRefinements >= 0 && point.woLocal.z > 0.0f;
+  specularApart_ = shared && !lambert;
+  cosFactor_ = (lambert && !point.table) || specularApart_;
   caps_.clear();
   if (options.visibility) lightCaps(point.scene, sp, point.geometry, caps_);
   touched_ = 0;
-  if (sp.flat && lambert_ && options.sharedRefinements >= 0 && point.woLocal.z > 0.0f) {
+  if (shared && cosFactor_) {
     table_ = &sharedLambertTable(point, options, colourBins);
     // The point's own caps, each with the faces it can reach. The cap of
     // the surface's own plane is left out: the table has no mass below it
@@ -334,7 +337,7 @@ void Frontier::children(int level, uint64_t parent, int parentClass, double w[4]
     const glm::vec3& centre = g.centers[first + uint64_t(j)];
     if (parentClass == 2) cls[j] = visibilityClass(caps_, centre, level);
     if (w[j] > 0.0 && cls[j] != 0)
-      b[j] = lambert_ ? double(std::max(glm::dot(centre, point_->n), 0.0f)) : double(point_->brdfValue(centre));
+      b[j] = cosFactor_ ? double(std::max(glm::dot(centre, point_->n), 0.0f)) : double(point_->brdfValue(centre));
     else
       b[j] = 0.0;
     top = std::max(top, b[j]);
@@ -424,6 +427,22 @@ int frontierBrdfCount(const Frontier& frontier, const FrontierOptions& options, 
   return frontierBrdfCount(frontier.coarseShare(), options, n);
 }
 
+Material specularLobeOf(const Material& m) {
+  Material lobe = m;
+  lobe.diffuse = glm::vec3(0.0f);
+  return lobe;
+}
+
+int frontierLobeCount(const Material& m, float cosO, float mirrorRadiance, double tableMass, int n) {
+  const float f0 = luminance(m.specular);
+  const float t = 1.0f - std::clamp(cosO, 0.0f, 1.0f);
+  const float reflectance = m.type == MaterialType::Ggx ? f0 + (1.0f - f0) * (t * t * t * t * t) : f0;
+  const double lobe = double(reflectance) * double(mirrorRadiance);
+  const double diffuse = double(luminance(m.diffuse)) * double(kInvPi) * tableMass;
+  if (!(lobe > 0.0)) return 0;
+  return std::clamp(int(std::lround(double(n) * lobe / (lobe + diffuse))), 0, std::max(n - 1, 0));
+}
+
 int frontierBrdfCount(double coarseShare, const FrontierOptions& options, int n) {
   const double share = std::min(coarseShare, double(options.maxBrdfShare));
   // At least one direction from the table: a lone BRDF sample would miss the
@@ -444,7 +463,17 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
   if (!frontier.shared()) counters.htNodes += uint64_t(12 + 4 * frontier.splits());
   if (!(frontier.totalMass() > 0.0)) return glm::vec3(0.0f);
   const Shading sh(scene, sp, counters);
-  const int nb = frontierBrdfCount(frontier, options, n);
+  // The BRDF technique: the specular lobe alone where the table is the
+  // diffuse lobe's, else the whole BRDF.
+  const bool apart = frontier.specularApart();
+  const Material bm = apart ? specularLobeOf(sh.material) : sh.material;
+  int nb = frontierBrdfCount(frontier, options, n);
+  if (apart) {
+    const int level = std::min(kFrontierLobeLevel, env.order);
+    const uint64_t node = healpix::vecToPix(level, glm::dvec3(point.mirror));
+    nb = frontierLobeCount(sh.material, point.woLocal.z, env.tree.avgv[MaxAvgTree::levelOffset(level) + node],
+                           frontier.totalMass(), n);
+  }
   const int nt = n - nb;
   glm::dvec3 sum(0.0);
   // Systematic points over the table's CDF, one offset per pixel; inside
@@ -457,15 +486,15 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
     sampler.startSample(uint32_t(i));
     const uint64_t leaf = frontier.sample((double(i) + u) / nt, sampler.get2D(), hp, pt);
     const glm::vec3 wi = env.fromHealpixFrame(hp);
-    const double pb = nb > 0 ? double(bsdfPdf(sh.material, sh.woLocal, sh.frame.toLocal(wi))) : 0.0;
+    const double pb = nb > 0 ? double(bsdfPdf(bm, sh.woLocal, sh.frame.toLocal(wi))) : 0.0;
     const glm::vec3 f = sh.reflected(wi, env.radiance[leaf]);
     if (f != glm::vec3(0.0f)) sum += glm::dvec3(f) / (nt * pt + nb * pb);
   }
   for (int i = 0; i < nb; ++i) {
     sampler.startSample(uint32_t(i));
     sampler.setDimension(1);
-    const glm::vec3 local = sampleBsdf(sh.material, sh.woLocal, sampler.get2D());
-    const double pb = bsdfPdf(sh.material, sh.woLocal, local);
+    const glm::vec3 local = sampleBsdf(bm, sh.woLocal, sampler.get2D());
+    const double pb = bsdfPdf(bm, sh.woLocal, local);
     if (!(pb > 0.0)) continue;
     const glm::vec3 wi = sh.frame.toWorld(local);
     const uint64_t leaf = env.pixelOf(wi);

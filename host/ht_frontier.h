@@ -31,6 +31,13 @@
 // a function of the normal and the environment alone, so sharing never
 // changes an image.
 //
+// A flat surface with a specular lobe samples its diffuse lobe's shared
+// table, and the lobe by the BRDF's own sampler of it: a per-point table
+// is far coarser than a narrow lobe, above all at grazing views, where
+// Fresnel makes the lobe most of what the surface reflects. The lobe's
+// share of the n directions follows its estimated share of the light
+// (frontierLobeCount), and the balance heuristic combines the two.
+//
 // The estimate is sum f(w) / (n_t p_t(w) + n_b p_b(w)) over all n directions.
 #pragma once
 
@@ -119,6 +126,9 @@ class Frontier {
   double totalMass() const { return total_; }
   double coarseShare() const { return table_->coarseShare; }
   bool shared() const { return table_ != &own_; }
+  // The table is the diffuse lobe's shared table and the BRDF technique
+  // samples the specular lobe alone (a flat surface that is not Lambert).
+  bool specularApart() const { return specularApart_; }
   int splits() const { return table_->splits; }
   size_t size() const { return table_->nodes.size(); }
 
@@ -133,7 +143,8 @@ class Frontier {
   int order_ = 0;
   int productLevel_ = 0;
   float brdfFloor_ = 0.0f, partialVisibility_ = 1.0f;
-  bool lambert_ = false;  // the BRDF factor is cos+ (up to a constant)
+  bool cosFactor_ = false;  // the BRDF factor is cos+ (up to a constant)
+  bool specularApart_ = false;
   FrontierTable own_;
   const FrontierTable* table_ = &own_;
   std::vector<LightCap> caps_;  // the caps the descent applies
@@ -162,6 +173,19 @@ class Frontier {
 constexpr uint64_t kFrontierSharedTables = 64;
 constexpr uint64_t kFrontierSharedTableBytes =
     (3 * kFrontierSharedRefinements + 12) * (sizeof(FrontierNode) + sizeof(uint32_t) + sizeof(double));
+
+// The material less its diffuse lobe.
+Material specularLobeOf(const Material& m);
+// The level of the environment's average around the mirror direction that
+// frontierLobeCount reads.
+constexpr int kFrontierLobeLevel = 3;
+// The n_s of n directions that sample the specular lobe where the table is
+// the diffuse lobe's: n S / (S + D), rounded, at most n - 1. S: the lobe's
+// reflectance at cos(theta_o) (Schlick for GGX, the specular colour for
+// Phong, in luminance) x `mirrorRadiance`, the environment's average around
+// the mirror direction; D: the diffuse albedo / pi x the table's mass, the
+// irradiance it estimates.
+int frontierLobeCount(const Material& m, float cosO, float mirrorRadiance, double tableMass, int n);
 
 // The splits a per-point frontier makes for n samples.
 int frontierRefinements(const FrontierOptions& options, int n);

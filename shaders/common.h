@@ -90,6 +90,9 @@
 // GpuFrontierScene::flags.
 #define HT_FRONTIER_SEGMENTS 192
 #define HT_FRONTIER_MAX_SHARED 32
+// ht-frontier: the level of the environment's average around the mirror
+// direction that sets a flat surface's specular lobe count.
+#define HT_FRONTIER_LOBE_LEVEL 3
 #define HT_FRONTIER_OWN 0xFFFFFFFFu
 #define HT_FRONTIER_VISIBILITY 1u
 #define HT_FRONTIER_COLOUR_ORDER 2u

@@ -8,9 +8,10 @@
 // read neighbouring words: candidates and a binary heap on (priority, index), whose largest
 // element is unique, so it splits the nodes std::pop_heap would, in the same
 // order. The nodes the refinement leaves unsplit are read out depth first,
-// which is the nested index's order the CPU sorts them into. A flat Lambert
-// surface takes its plane's shared table (built on the host) and applies its
-// own caps to the faces they reach.
+// which is the nested index's order the CPU sorts them into. A flat
+// surface takes its plane's shared Lambert table (built on the host) and
+// applies its own caps to the faces they reach; with a specular lobe, the
+// lobe is sampled apart.
 //
 // The first batch of a pixel builds its table; the later ones draw
 // directions from it (GpuFrontierPoint carries the rest).
@@ -568,6 +569,29 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
 
 // ---------------------------------------------------------------- estimate
 
+// frontierLobeCount: the n_s of n directions that sample the specular lobe
+// of a flat surface, whose table is its diffuse lobe's.
+uint frontierLobeCount(GpuMaterial m, uint n) {
+  precise float f0 = luminance(m.specular);
+  precise float t = 1.0 - clamp(ht.woLocal.z, 0.0, 1.0);
+  precise float reflectance = m.type == HT_MATERIAL_GGX ? f0 + (1.0 - f0) * (t * t * t * t * t) : f0;
+  uint level = min(uint(HT_FRONTIER_LOBE_LEVEL), scene.envOrder);
+  float radiance = treeAvg(levelOffset(level) + vecToPix(level, hvec3(ht.mirror)));
+  precise hreal lobe = hreal(reflectance) * hreal(radiance);
+  precise hreal diffuse = hreal(luminance(m.diffuse)) * hreal(kInvPi) * gFrTotal;
+  if (!(lobe > 0.0)) return 0u;
+  precise hreal x = hreal(n) * lobe / (lobe + diffuse);
+  hreal whole = floor(x);
+  uint ns = uint(whole) + (subF(x, whole) >= 0.5 ? 1u : 0u);
+  return min(ns, n > 0u ? n - 1u : 0u);
+}
+
+// The table is the diffuse lobe's shared one and the BRDF technique samples
+// the specular lobe alone (Frontier::specularApart).
+bool frontierSpecularApart(GpuMaterial material, uint table) {
+  return table != kFrontierNone && material.type != HT_MATERIAL_LAMBERT;
+}
+
 // Points the globals at the pixel's scratch.
 void frontierBind(uint slot) {
   gFrBase = pc.frontierScratch;
@@ -587,9 +611,9 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
   htInit(position, normal, wo, material);
   frontierCaps(position, normal);
   frontierBind(slot);
-  gFrLambert = material.type == HT_MATERIAL_LAMBERT;
   gFrTouched = 0u;
-  uint table = planar && gFrLambert && ht.woLocal.z > 0.0 ? frontierSharedTable() : kFrontierNone;
+  uint table = planar && ht.woLocal.z > 0.0 ? frontierSharedTable() : kFrontierNone;
+  gFrLambert = material.type == HT_MATERIAL_LAMBERT || table != kFrontierNone;
   if (table != kFrontierNone) {
     frontierUseShared(table);
     frontierApplyCaps();
@@ -602,7 +626,7 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
   GpuFrontierPoint pt;
   pt.table = table;
   pt.touched = gFrTouched;
-  pt.nb = tableWord(kFrontierBrdfCount);
+  pt.nb = frontierSpecularApart(material, table) ? frontierLobeCount(material, n) : tableWord(kFrontierBrdfCount);
   pt.nt = n - pt.nb;
   pt.total = hrealToBits(gFrTotal);
   pt.u = hrealToBits(hreal(rngNext(rng)));
@@ -615,8 +639,8 @@ GpuFrontierPoint frontierResume(vec3 position, vec3 normal, vec3 wo, GpuMaterial
   htInit(position, normal, wo, material);
   frontierCaps(position, normal);
   frontierBind(slot);
-  gFrLambert = material.type == HT_MATERIAL_LAMBERT;
   GpuFrontierPoint pt = frontierPoint().v[0];
+  gFrLambert = material.type == HT_MATERIAL_LAMBERT || pt.table != kFrontierNone;
   if (pt.table != kFrontierNone) {
     frontierUseShared(pt.table);
     frontierDropOwnPlane();
@@ -634,6 +658,11 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
                      inout uint directions) {
   hreal u = hrealFromBits(pt.u);
   hreal nt = hreal(pt.nt), nb = hreal(pt.nb);
+  GpuMaterial bm = sh.material;
+  if (frontierSpecularApart(sh.material, pt.table)) {
+    bm.diffuse = vec3(0.0);
+    bm.specularProbability = luminance(bm.specular) > 0.0 ? 1.0 : 0.0;  // specularLobeProbability
+  }
   uint j = begin;
   for (; j < end; ++j) {
     directions += 1u;
@@ -647,12 +676,12 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
       hvec3 hp;
       leaf = frontierSample(x, jitter, hp, ptable);
       wi = fromHealpixFrame(hp);
-      pb = pt.nb > 0u ? hreal(bsdfPdf(sh.material, sh.woLocal, toLocal(sh.frame, wi))) : hreal(0.0);
+      pb = pt.nb > 0u ? hreal(bsdfPdf(bm, sh.woLocal, toLocal(sh.frame, wi))) : hreal(0.0);
     } else {
       samplerStart(smp, j - pt.nt);
       smp.dimension = 1u;
-      vec3 local = sampleBsdf(sh.material, sh.woLocal, samplerNext2D(smp));
-      float pdf = bsdfPdf(sh.material, sh.woLocal, local);
+      vec3 local = sampleBsdf(bm, sh.woLocal, samplerNext2D(smp));
+      float pdf = bsdfPdf(bm, sh.woLocal, local);
       if (!(pdf > 0.0)) continue;
       pb = hreal(pdf);
       wi = toWorld(sh.frame, local);

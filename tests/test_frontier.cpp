@@ -47,6 +47,14 @@ std::vector<ShadingSetup> setups() {
   s.push_back(makeSetup("ggx0.3-sun", onePixelSun(kEnvOrder), ggx(0.3f, glm::vec3(0.04f), glm::vec3(0.5f)),
                         mirrorOf(kSunDir)));
   s.push_back(makeSetup("ggx0.01-sunrise", sunrise(), ggx(0.01f, glm::vec3(0.95f)), {0.3f, 0.6f, -0.5f}));
+  // Flat surfaces with a specular lobe: the diffuse lobe's shared table and
+  // the lobe sampled apart; a grazing view, and a conductor (no diffuse
+  // lobe) that mirrors the sun.
+  s.push_back(flat(makeSetup("flat-ggx0.05-plastic-grazing-sunrise-occluded", sunrise(),
+                             ggx(0.05f, glm::vec3(0.04f), glm::vec3(0.3f)), {0.1f, 0.06f, 1.0f},
+                             {{glm::vec3(0.0f, 0.4f, -1.0f), 0.4f, 0}})));
+  s.push_back(flat(makeSetup("flat-ggx0.1-conductor-sun", onePixelSun(kEnvOrder), ggx(0.1f, glm::vec3(0.9f)),
+                             mirrorOf(kSunDir))));
   return s;
 }
 
@@ -250,9 +258,66 @@ TEST(Frontier, PathsTaken) {
   EXPECT_LT(diffuse.frontier.totalMass(), open.frontier.totalMass());
 }
 
+// A flat surface with a specular lobe samples its diffuse lobe's shared
+// table and the lobe apart; a glossy point off any plane keeps its own
+// table of the whole BRDF.
+TEST(Frontier, FlatSpecularLobeApart) {
+  const std::vector<ShadingSetup> all = setups();
+  FrontierOptions options;
+  PreparedPoint plastic, conductor, curved, diffuse;
+  prepare(all[7], options, 16, plastic);
+  prepare(all[8], options, 16, conductor);
+  prepare(all[2], options, 16, curved);
+  prepare(all[0], options, 16, diffuse);
+  EXPECT_TRUE(plastic.frontier.shared());
+  EXPECT_TRUE(plastic.frontier.specularApart());
+  EXPECT_EQ(plastic.frontier.splits(), options.sharedRefinements);
+  EXPECT_TRUE(conductor.frontier.specularApart());
+  EXPECT_FALSE(curved.frontier.specularApart());
+  EXPECT_FALSE(diffuse.frontier.specularApart());
+  // Below the horizon the shared table is not used: nothing to share.
+  ShadingSetup below = all[7];
+  below.sp.wo = glm::vec3(0.0f, -0.5f, 0.8660254f);
+  PreparedPoint under;
+  prepare(below, options, 16, under);
+  EXPECT_FALSE(under.frontier.specularApart());
+
+  // Every estimate still takes exactly n directions.
+  for (const ShadingSetup* s : {&all[7], &all[8]}) {
+    ShadingPoint sp = s->sp;
+    sp.material = &s->scene.materials[0];
+    const MethodTables tables = prepareTables(s->scene, Method::HtFrontier);
+    for (int n : {1, 3, 16}) {
+      Rng rng(5, 2);
+      EstimateCounters c;
+      estimateDirect(s->scene, sp, Method::HtFrontier, n, rng, c, tables);
+      EXPECT_EQ(c.directions, uint64_t(n)) << s->name;
+    }
+  }
+}
+
+// The lobe's count: none without a lobe or without light around the mirror
+// direction, all but one direction without a diffuse lobe, more at grazing
+// views (Fresnel), the rounded share otherwise.
+TEST(Frontier, LobeCount) {
+  const Material plastic = ggx(0.05f, glm::vec3(0.04f), glm::vec3(0.3f));
+  EXPECT_EQ(frontierLobeCount(lambert(0.5f), 0.5f, 1.0f, 1.0, 16), 0);
+  EXPECT_EQ(frontierLobeCount(plastic, 0.5f, 0.0f, 1.0, 16), 0);
+  EXPECT_EQ(frontierLobeCount(ggx(0.1f, glm::vec3(0.9f)), 0.5f, 1.0f, 1.0, 16), 15);
+  EXPECT_EQ(frontierLobeCount(ggx(0.1f, glm::vec3(0.9f)), 0.5f, 1.0f, 1.0, 1), 0);
+  EXPECT_LT(frontierLobeCount(plastic, 1.0f, 1.0f, kPi, 16), frontierLobeCount(plastic, 0.05f, 1.0f, kPi, 16));
+  // Normal view: S = 0.04, D = 0.3 (irradiance pi): 16 x 0.04 / 0.34 = 1.88.
+  EXPECT_EQ(frontierLobeCount(plastic, 1.0f, 1.0f, kPi, 16), 2);
+  // Phong: the specular colour at every angle.
+  const Material shiny = phong(100.0f, glm::vec3(0.5f), glm::vec3(0.5f));
+  EXPECT_EQ(frontierLobeCount(shiny, 1.0f, 1.0f, kPi, 16), 8);
+  EXPECT_EQ(frontierLobeCount(shiny, 0.1f, 1.0f, kPi, 16), 8);
+}
+
 // The mean of many estimates matches the brute-force integral (z-test,
 // Sidak-corrected over setups, sample counts and channels); the setups take
-// every path (own and shared tables, BRDF samples by MIS).
+// every path (own and shared tables, BRDF samples by MIS, the specular lobe
+// apart on flat surfaces).
 TEST(Frontier, UnbiasedAgainstBruteForce) { expectUnbiased({1, 5, 16}, 4000, 500, 8); }
 
 // A shared table is a function of its normal and environment alone: the

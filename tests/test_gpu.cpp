@@ -422,9 +422,9 @@ const Scene& statisticsScene() {
 // Sidak-corrected 1 % level; and the relative difference of the image means
 // below 4 standard errors and below 2 %. Pixels whose CPU runs all agree
 // (the sky) must match to 1e-4.
-void expectAgreesWithCpuStatistically(Method method, int kSpp, bool fp32 = false) {
+void expectAgreesWithCpuStatistically(Method method, int kSpp, bool fp32 = false,
+                                      const Scene& scene = statisticsScene()) {
   constexpr int kCpuRuns = 32;
-  const Scene& scene = statisticsScene();
   GpuRenderResult g;
   {
     GpuRenderer gpu(gpuOptions(fp32));
@@ -920,6 +920,18 @@ INSTANTIATE_TEST_SUITE_P(Product, GpuOtherSeeds, ::testing::Values(Method::HtFro
 // estimator, other directions.
 INSTANTIATE_TEST_SUITE_P(Product, GpuOtherSeedsFp32, ::testing::Values(Method::HtFrontier),
                          [](const auto&) { return std::string("ht_frontier"); });
+
+// On a glossy floor a point samples the plane's shared table and its
+// specular lobe apart; in float too the estimator is the CPU's.
+TEST(GpuFrontier, GlossyFloorAgreesInFloat) {
+  Scene scene = statisticsScene();
+  Material& floor = scene.materials[size_t(scene.planes.at(0).material)];
+  floor.type = MaterialType::Ggx;
+  floor.alpha = 0.3f;
+  floor.specular = glm::vec3(0.04f);
+  floor.diffuse = glm::vec3(0.5f);
+  expectAgreesWithCpuStatistically(Method::HtFrontier, 64, true, scene);
+}
 
 // The nodes each pixel's table bounds (the stats' HT node count) are the
 // CPU's, pixel by pixel in sum, and a pixel's scratch is its own: small
