@@ -116,7 +116,9 @@ struct FrontierTable {
 class Frontier {
  public:
   // Prepares the frontier at `point` for n samples, reusing this object's
-  // storage and, on a flat surface, the calling thread's shared tables.
+  // storage and, on a flat surface, the calling thread's shared tables (one
+  // stays valid until the thread builds a frontier under another
+  // environment, or more than kFrontierSharedTables of them).
   // `point` is `sp` seen by HT (its visibility caps are not used);
   // `colourBins`: frontierColourBins of the point's environment.
   void build(const HtPoint& point, const ShadingPoint& sp, const FrontierOptions& options, int n,

@@ -264,16 +264,18 @@ TEST(Frontier, PathsTaken) {
 TEST(Frontier, FlatSpecularLobeApart) {
   const std::vector<ShadingSetup> all = setups();
   FrontierOptions options;
+  // A shared table lives until the thread builds a frontier under another
+  // environment: each point is checked before the next is prepared.
   PreparedPoint plastic, conductor, curved, diffuse;
   prepare(all[7], options, 16, plastic);
-  prepare(all[8], options, 16, conductor);
-  prepare(all[2], options, 16, curved);
-  prepare(all[0], options, 16, diffuse);
   EXPECT_TRUE(plastic.frontier.shared());
   EXPECT_TRUE(plastic.frontier.specularApart());
   EXPECT_EQ(plastic.frontier.splits(), options.sharedRefinements);
+  prepare(all[8], options, 16, conductor);
   EXPECT_TRUE(conductor.frontier.specularApart());
+  prepare(all[2], options, 16, curved);
   EXPECT_FALSE(curved.frontier.specularApart());
+  prepare(all[0], options, 16, diffuse);
   EXPECT_FALSE(diffuse.frontier.specularApart());
   // Below the horizon the shared table is not used: nothing to share.
   ShadingSetup below = all[7];
