@@ -228,7 +228,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
   caps_.clear();
   if (options.visibility) lightCaps(point.scene, sp, point.geometry, caps_);
   touched_ = 0;
-  if (shared && cosFactor_) {
+  if (shared) {
     table_ = &sharedLambertTable(point, options, colourBins);
     // The point's own caps, each with the faces it can reach. The cap of
     // the surface's own plane is left out: the table has no mass below it
@@ -467,13 +467,12 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
   // diffuse lobe's, else the whole BRDF.
   const bool apart = frontier.specularApart();
   const Material bm = apart ? specularLobeOf(sh.material) : sh.material;
-  int nb = frontierBrdfCount(frontier, options, n);
-  if (apart) {
-    const int level = std::min(kFrontierLobeLevel, env.order);
-    const uint64_t node = healpix::vecToPix(level, glm::dvec3(point.mirror));
-    nb = frontierLobeCount(sh.material, point.woLocal.z, env.tree.avgv[MaxAvgTree::levelOffset(level) + node],
-                           frontier.totalMass(), n);
-  }
+  const int lobeLevel = std::min(kFrontierLobeLevel, env.order);
+  const int nb = apart ? frontierLobeCount(sh.material, point.woLocal.z,
+                                           env.tree.avgv[MaxAvgTree::levelOffset(lobeLevel) +
+                                                         healpix::vecToPix(lobeLevel, glm::dvec3(point.mirror))],
+                                           frontier.totalMass(), n)
+                       : frontierBrdfCount(frontier, options, n);
   const int nt = n - nb;
   glm::dvec3 sum(0.0);
   // Systematic points over the table's CDF, one offset per pixel; inside
