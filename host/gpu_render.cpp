@@ -541,7 +541,7 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
   f.capacity = 12 + 3 * refinements;
   f.sharedCapacity = sharedCapacity;
   f.brdfFloor = options.brdfFloor;
-  f.partialVisibility = options.partialVisibility;
+  f.minPartialVisibility = options.minPartialVisibility;
   f.coarseRatio = options.coarseRatio;
   f.maxBrdfShare = options.maxBrdfShare;
   f.productLevel = uint32_t(std::max(options.productLevel, 0));

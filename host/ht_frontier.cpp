@@ -119,17 +119,29 @@ void lightCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& g, 
   }
 }
 
-// 0: a node of `level` at `centre` lies inside a cap (blocked), 1: outside
-// every cap, 2: partly covered.
-int visibilityClass(const std::vector<LightCap>& caps, const glm::vec3& centre, int level) {
+}  // namespace
+
+int frontierVisibility(const std::vector<LightCap>& caps, const glm::vec3& centre, int level, float minPartial,
+                       float& factor) {
   bool partial = false;
+  float visible = 1.0f;
   for (const LightCap& c : caps) {
     const float d = glm::dot(centre, c.axis);
-    if (d >= c.cosInside[size_t(level)]) return 0;
-    partial |= d > c.cosOutside[size_t(level)];
+    const float inside = c.cosInside[size_t(level)], outside = c.cosOutside[size_t(level)];
+    if (d >= inside) {
+      factor = 0.0f;
+      return 0;
+    }
+    if (d > outside) {
+      partial = true;
+      visible = std::min(visible, 1.0f - std::min((d - outside) / (std::min(inside, 1.0f) - outside), 1.0f));
+    }
   }
+  factor = partial ? std::max(visible, minPartial) : 1.0f;
   return partial ? 2 : 1;
 }
+
+namespace {
 
 struct SharedKey {
   uint64_t tree;
@@ -220,7 +232,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
   order_ = point.env.order;
   productLevel_ = options.productLevel;
   brdfFloor_ = options.brdfFloor;
-  partialVisibility_ = options.partialVisibility;
+  minPartialVisibility_ = options.minPartialVisibility;
   const bool lambert = point.material.type == MaterialType::Lambert;
   const bool shared = sp.flat && !point.table && options.sharedRefinements >= 0 && point.woLocal.z > 0.0f;
   specularApart_ = shared && !lambert;
@@ -256,8 +268,9 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
       if (!(touched_ >> f & 1u)) continue;
       for (uint32_t k = t.faceStart[f]; k < t.faceStart[f + 1]; ++k) {
         const FrontierNode& nd = t.nodes[k];
-        const int cls = visibilityClass(faceCaps[f], nd.centre, nd.level);
-        mass_[k] = cls == 0 ? 0.0 : cls == 2 ? nd.mass * double(options.partialVisibility) : nd.mass;
+        float factor;
+        const int cls = frontierVisibility(faceCaps[f], nd.centre, nd.level, options.minPartialVisibility, factor);
+        mass_[k] = cls == 1 ? nd.mass : nd.mass * double(factor);
         class_[k] = uint8_t(cls);
       }
       for (int bin = 0; bin < kFrontierColourBins; ++bin) {
@@ -278,9 +291,8 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
       if (!options.visibility) {
         visibility = 1;
       } else if (visibility == 2) {
-        visibility = visibilityClass(caps_, point.geometry.centers[i], level);
+        visibility = frontierVisibility(caps_, point.geometry.centers[i], level, options.minPartialVisibility, vis);
         if (visibility == 0) return false;
-        if (visibility == 2) vis = options.partialVisibility;
       }
       centre = point.brdfValue(point.geometry.centers[i]);
       c = std::max(centre, options.brdfFloor * bound) * vis;
@@ -326,28 +338,38 @@ size_t Frontier::nodeOfLeaf(uint64_t leaf) const {
 void Frontier::children(int level, uint64_t parent, int parentClass, double w[4], int cls[4]) const {
   const MaxAvgTree& tree = point_->env.tree;
   const uint64_t first = MaxAvgTree::levelOffset(level) + 4 * parent;
+  double v[4];
   for (int j = 0; j < 4; ++j) {
     w[j] = tree.avgv[first + uint64_t(j)];
     cls[j] = parentClass;
+    v[j] = 1.0;
   }
-  if (level > productLevel_) return;
+  const bool product = level <= productLevel_;
+  if (!product && parentClass != 2) return;
   const HtGeometry& g = point_->geometry;
-  double b[4], p[4], top = 0.0;
-  for (int j = 0; j < 4; ++j) {
-    const glm::vec3& centre = g.centers[first + uint64_t(j)];
-    if (parentClass == 2) cls[j] = visibilityClass(caps_, centre, level);
-    if (w[j] > 0.0 && cls[j] != 0)
-      b[j] = cosFactor_ ? double(std::max(glm::dot(centre, point_->n), 0.0f)) : double(point_->brdfValue(centre));
-    else
-      b[j] = 0.0;
-    top = std::max(top, b[j]);
+  if (parentClass == 2)
+    for (int j = 0; j < 4; ++j) {
+      float factor;
+      cls[j] = frontierVisibility(caps_, g.centers[first + uint64_t(j)], level, minPartialVisibility_, factor);
+      v[j] = double(factor);
+    }
+  double b[4] = {1.0, 1.0, 1.0, 1.0};
+  if (product) {
+    double top = 0.0;
+    for (int j = 0; j < 4; ++j) {
+      const glm::vec3& centre = g.centers[first + uint64_t(j)];
+      if (w[j] > 0.0 && cls[j] != 0)
+        b[j] = cosFactor_ ? double(std::max(glm::dot(centre, point_->n), 0.0f)) : double(point_->brdfValue(centre));
+      else
+        b[j] = 0.0;
+      top = std::max(top, b[j]);
+    }
+    // A child the integrand may reach keeps a weight above 0: its BRDF
+    // factor is at least the floor times its siblings' largest.
+    for (int j = 0; j < 4; ++j) b[j] = top > 0.0 ? std::max(b[j], double(brdfFloor_) * top) : 1.0;
   }
-  // A child the integrand may reach keeps a weight above 0: its BRDF factor
-  // is at least the floor times its siblings' largest.
-  for (int j = 0; j < 4; ++j) {
-    const double v = cls[j] == 0 ? 0.0 : cls[j] == 2 ? double(partialVisibility_) : 1.0;
-    p[j] = w[j] * (top > 0.0 ? std::max(b[j], double(brdfFloor_) * top) : 1.0) * v;
-  }
+  double p[4];
+  for (int j = 0; j < 4; ++j) p[j] = w[j] * b[j] * v[j];
   // Caps over all four children leave the environment's weights.
   if (p[0] + p[1] + p[2] + p[3] > 0.0)
     for (int j = 0; j < 4; ++j) w[j] = p[j];

@@ -60,14 +60,15 @@ struct FrontierOptions {
   int refinements = -1;
   int sharedRefinements = kFrontierSharedRefinements;  // a flat surface's shared table (< 0: not shared)
   float brdfFloor = 0.25f;      // node BRDF factor >= this x its bound
-  // Visibility factor of a node the caps cover in part. Low values give its
-  // visible part too little mass (large f / p); 0.85 measured best.
-  float partialVisibility = 0.85f;
+  // A node the caps cover in part weighs its estimated visible share
+  // (frontierVisibility), never less than this: an underestimate gives its
+  // visible part too little mass (large f / p).
+  float minPartialVisibility = 0.1f;
   float coarseRatio = 4.0f;     // a node is coarse for the BRDF when B > this x its centre value
   float maxBrdfShare = 0.5f;    // at most this share of the n directions from the BRDF
   bool visibility = true;       // caps in the density
   // Below a table node, children are drawn by environment x BRDF x
-  // visibility down to this level, by the environment alone below it.
+  // visibility down to this level, by the environment x visibility below it.
   int productLevel = 5;
   bool colourOrder = true;      // the CDF's nodes by colour (else along the nested index)
 };
@@ -79,6 +80,15 @@ struct LightCap {
   glm::vec3 axis;
   std::array<float, 32> cosInside, cosOutside;
 };
+
+// The visibility of a node of `level` at `centre` under `caps`: its class
+// (0 inside a cap, 1 outside every cap, 2 partly covered) and its factor in
+// the density: 0, 1, or for a partly covered node its visible share under
+// the cap that covers most of it, the covered share taken linear in cos
+// between the cap's outside and inside thresholds; at least `minPartial`.
+// Caps overlap (a ball on a plane), so the smallest share, not a product.
+int frontierVisibility(const std::vector<LightCap>& caps, const glm::vec3& centre, int level, float minPartial,
+                       float& factor);
 
 // The colour bins that order a frontier's CDF.
 constexpr int kFrontierColourBins = 16;
@@ -144,7 +154,7 @@ class Frontier {
   const HtPoint* point_ = nullptr;
   int order_ = 0;
   int productLevel_ = 0;
-  float brdfFloor_ = 0.0f, partialVisibility_ = 1.0f;
+  float brdfFloor_ = 0.0f, minPartialVisibility_ = 1.0f;
   bool cosFactor_ = false;  // the BRDF factor is cos+ (up to a constant)
   bool specularApart_ = false;
   FrontierTable own_;

@@ -347,7 +347,7 @@ struct GpuFrontierScene {
   uint capacity;
   uint sharedCapacity;
   float brdfFloor;
-  float partialVisibility;
+  float minPartialVisibility;
   float coarseRatio;
   float maxBrdfShare;
   uint productLevel;

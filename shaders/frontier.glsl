@@ -132,16 +132,26 @@ precise float frontierCosInside(uint k, float cR, float sR) {
 }
 precise float frontierCosOutside(uint k, float cR, float sR) { return gFrCapCos[k] * cR - gFrCapSin[k] * sR; }
 
-// visibilityClass over the caps in `caps`: 0 inside one, 1 outside all, 2 partly covered.
-uint frontierClass(vec3 centre, uint level, uint caps) {
+// frontierVisibility over the caps in `caps`: the class (0 inside one, 1
+// outside all, 2 partly covered) and the node's factor in the density.
+uint frontierClass(vec3 centre, uint level, uint caps, out float factor) {
   float cR = gFs.levelCosRadius[level], sR = gFs.levelSinRadius[level];
   bool partial = false;
+  precise float visible = 1.0;
   for (uint k = 0u; k < gFrCapCount; ++k) {
     if (((caps >> k) & 1u) == 0u) continue;
-    float d = dot3(centre, gFrCapAxis[k]);
-    if (d >= frontierCosInside(k, cR, sR)) return 0u;
-    partial = partial || d > frontierCosOutside(k, cR, sR);
+    precise float d = dot3(centre, gFrCapAxis[k]);
+    precise float inside = frontierCosInside(k, cR, sR), outside = frontierCosOutside(k, cR, sR);
+    if (d >= inside) {
+      factor = 0.0;
+      return 0u;
+    }
+    if (d > outside) {
+      partial = true;
+      visible = min(visible, 1.0 - min((d - outside) / (min(inside, 1.0) - outside), 1.0));
+    }
   }
+  factor = partial ? max(visible, gFs.minPartialVisibility) : 1.0;
   return partial ? 2u : 1u;
 }
 
@@ -217,9 +227,8 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
   if ((gFs.flags & HT_FRONTIER_VISIBILITY) == 0u) {
     cls = 1u;
   } else if (cls == 2u) {
-    cls = frontierClass(centre, level, gFrCaps);
+    cls = frontierClass(centre, level, gFrCaps, vis);
     if (cls == 0u) return;
-    if (cls == 2u) vis = gFs.partialVisibility;
   }
   float value = htBrdfValue(centre);
   precise float c = max(value, gFs.brdfFloor * bound) * vis;
@@ -390,9 +399,10 @@ void frontierApplyCaps() {
     gFrTouched |= 1u << f;
     for (uint k = faceStart(f); k < faceStart(f + 1u); ++k) {
       GpuFrontierNode nd = tableNode(k);
-      uint cls = frontierClass(htCenter(levelOffset(nd.level) + nd.node), nd.level, faceCaps);
+      float factor;
+      uint cls = frontierClass(htCenter(levelOffset(nd.level) + nd.node), nd.level, faceCaps, factor);
       hreal mass = tableMass(k);
-      gFrPointMass.v[(k) * gFrPixels] = cls == 0u ? hreal(0.0) : cls == 2u ? mulF(mass, hreal(gFs.partialVisibility)) : mass;
+      gFrPointMass.v[(k) * gFrPixels] = cls == 1u ? mass : mulF(mass, hreal(factor));
       gFrPointClass.v[(k) * gFrPixels] = cls;
     }
     for (uint bin = 0u; bin < uint(HT_FRONTIER_SEGMENTS) / 12u; ++bin) {
@@ -434,28 +444,35 @@ void frontierSegments() {
 // Frontier::children: the four children's weights and classes.
 void frontierChildren(uint level, uint parent, uint parentClass, out hreal w[4], out uint cls[4]) {
   uint first = levelOffset(level) + 4u * parent;
+  hreal v[4];
   for (uint j = 0u; j < 4u; ++j) {
     w[j] = hreal(treeAvg(first + j));
     cls[j] = parentClass;
+    v[j] = 1.0;
   }
-  if (level > gFs.productLevel) return;
-  hreal b[4];
-  hreal top = 0.0;
-  for (uint j = 0u; j < 4u; ++j) {
-    vec3 centre = htCenter(first + j);
-    if (parentClass == 2u) cls[j] = frontierClass(centre, level, gFrCaps);
-    if (w[j] > 0.0 && cls[j] != 0u)
-      b[j] = gFrLambert ? hreal(max(dot3(centre, ht.n), 0.0)) : hreal(htBrdfValue(centre));
-    else
-      b[j] = 0.0;
-    top = max(top, b[j]);
+  bool product = level <= gFs.productLevel;
+  if (!product && parentClass != 2u) return;
+  if (parentClass == 2u)
+    for (uint j = 0u; j < 4u; ++j) {
+      float factor;
+      cls[j] = frontierClass(htCenter(first + j), level, gFrCaps, factor);
+      v[j] = hreal(factor);
+    }
+  hreal b[4] = hreal[4](1.0, 1.0, 1.0, 1.0);
+  if (product) {
+    hreal top = 0.0;
+    for (uint j = 0u; j < 4u; ++j) {
+      vec3 centre = htCenter(first + j);
+      if (w[j] > 0.0 && cls[j] != 0u)
+        b[j] = gFrLambert ? hreal(max(dot3(centre, ht.n), 0.0)) : hreal(htBrdfValue(centre));
+      else
+        b[j] = 0.0;
+      top = max(top, b[j]);
+    }
+    for (uint j = 0u; j < 4u; ++j) b[j] = top > 0.0 ? max(b[j], mulF(hreal(gFs.brdfFloor), top)) : hreal(1.0);
   }
   hreal p[4];
-  for (uint j = 0u; j < 4u; ++j) {
-    hreal v = cls[j] == 0u ? hreal(0.0) : cls[j] == 2u ? hreal(gFs.partialVisibility) : hreal(1.0);
-    hreal factor = top > 0.0 ? max(b[j], mulF(hreal(gFs.brdfFloor), top)) : hreal(1.0);
-    p[j] = mulF(mulF(w[j], factor), v);
-  }
+  for (uint j = 0u; j < 4u; ++j) p[j] = mulF(mulF(w[j], b[j]), v[j]);
   if (addF(addF(addF(p[0], p[1]), p[2]), p[3]) > 0.0)
     for (uint j = 0u; j < 4u; ++j) w[j] = p[j];
 }
