@@ -217,8 +217,10 @@ struct GpuRenderer::Impl {
   vk::Buffer tsisBuffer;
   // ht-frontier: its colour bins (per map) and, per render, its shared
   // tables and settings (GpuFrontierScene).
-  std::shared_ptr<const std::vector<uint8_t>> frontierBins;
+  std::shared_ptr<const FrontierColours> frontierColours;
   vk::Buffer frontierBinsBuffer;
+  std::vector<vk::Buffer> frontierChromaBuffers;
+  uint64_t frontierChroma[HT_FRONTIER_CHROMA_CHUNKS] = {};
   std::vector<vk::Buffer> frontierBuffers;
   GpuFrontierScene frontier{};
   bool recordHtSamples = false;
@@ -359,8 +361,9 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.brdfBuffer = {};
   m.tsis = nullptr;
   m.tsisBuffer = {};
-  m.frontierBins = nullptr;
+  m.frontierColours = nullptr;
   m.frontierBinsBuffer = {};
+  m.frontierChromaBuffers.clear();
   m.frontierBuffers.clear();
   m.hostScene = &scene;
   m.hasScene = true;
@@ -459,6 +462,7 @@ void layOutFrontierScratch(uint32_t real, GpuFrontierScene& f) {
   f.offPointClass = place(f.sharedCapacity * 4);
   f.offPointCum = place(f.sharedCapacity * real);
   f.offSegCum = place((HT_FRONTIER_SEGMENTS + 1) * real);
+  f.offColourAverage = place(3 * real);
   f.pixelBytes = at;
 }
 
@@ -471,20 +475,32 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
   const Scene& hs = *hostScene;
   const Environment& env = hs.environment;
   const HtGeometry& g = t.geometry();
-  const std::vector<uint8_t>& bins = t.colourBins();
+  const FrontierColours& colours = t.colours();
+  const std::vector<uint8_t>& bins = colours.bins;
   FrontierOptions options;
   options.refinements = s.options.frontierRefinements;
+  options.colourControl = s.options.frontierColourControl;
   const int n = std::max(s.spp, 1);
   const bool fp64 = usesFloat64(s.method);
-  if (frontierBins != t.frontierBins) {
+  if (frontierColours != t.frontierColours) {
     std::vector<uint32_t> packed((bins.size() + 3) / 4, 0u);
     for (size_t i = 0; i < bins.size(); ++i) packed[i / 4] |= uint32_t(bins[i]) << (8 * (i % 4));
     frontierBinsBuffer = uploadArray(ctx, packed);
-    frontierBins = t.frontierBins;
+    constexpr uint64_t chunk = uint64_t(1) << HT_HT_VEC3_CHUNK_SHIFT;
+    if (colours.chroma.size() > HT_FRONTIER_CHROMA_CHUNKS * chunk)
+      throw Error(fmt::format("method ht-frontier on the GPU handles maps up to Nside 2048 (this one has {} nodes "
+                              "above its pixels, at most {}); use --device cpu",
+                              colours.chroma.size(), HT_FRONTIER_CHROMA_CHUNKS * chunk));
+    frontierChromaBuffers.clear();
+    std::fill(std::begin(frontierChroma), std::end(frontierChroma), uint64_t(0));
+    uploadChunked(ctx, colours.chroma.data(), std::max<uint64_t>(colours.chroma.size(), 1), sizeof(glm::vec3), chunk,
+                  frontierChromaBuffers, frontierChroma, "ht-frontier chroma");
+    frontierColours = t.frontierColours;
   }
   GpuFrontierScene& f = frontier;
   f = GpuFrontierScene{};
   f.bins = frontierBinsBuffer.address();
+  std::copy(std::begin(frontierChroma), std::end(frontierChroma), f.chroma);
 
   const std::vector<glm::vec3> normals =
       options.sharedRefinements >= 0 ? sharedFrontierNormals(hs) : std::vector<glm::vec3>{};
@@ -494,11 +510,12 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
   std::vector<GpuFrontierHeader> headers;
   std::vector<GpuFrontierNode> nodes;
   std::vector<uint32_t> order;
-  std::vector<double> mass, cum;
+  std::vector<double> mass, cum, faceColour;
+  std::vector<GpuFrontierColour> colour;
   uint32_t sharedCapacity = 0;
   for (size_t k = 0; k < normals.size(); ++k) {
     FrontierTable table;
-    buildSharedFrontierTable(env, g, normals[k], options, bins, table);
+    buildSharedFrontierTable(env, g, normals[k], options, colours, table);
     GpuFrontierHeader h{};
     std::copy(table.segStart.begin(), table.segStart.end(), h.segStart);
     std::copy(table.faceStart.begin(), table.faceStart.end(), h.faceStart);
@@ -511,7 +528,9 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
     for (const FrontierNode& nd : table.nodes) {
       nodes.push_back({uint32_t(nd.level), uint32_t(nd.node), nd.brdfBound, nd.brdfCentre, uint32_t(nd.visibility), 0u});
       mass.push_back(nd.mass);
+      colour.push_back({nd.chroma, nd.descentChroma});
     }
+    for (const glm::dvec4& c : table.faceColour) faceColour.insert(faceColour.end(), {c.x, c.y, c.z, c.w});
     order.insert(order.end(), table.cdfOrder.begin(), table.cdfOrder.end());
     cum.insert(cum.end(), table.cum.begin(), table.cum.end());
     sharedCapacity = std::max(sharedCapacity, h.count);
@@ -528,11 +547,15 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
   frontierBuffers.push_back(uploadArray(ctx, order));
   frontierBuffers.push_back(reals(mass));
   frontierBuffers.push_back(reals(cum));
+  frontierBuffers.push_back(uploadArray(ctx, colour));
+  frontierBuffers.push_back(reals(faceColour));
   f.sharedHeaders = frontierBuffers[0].address();
   f.sharedNodes = frontierBuffers[1].address();
   f.sharedOrder = frontierBuffers[2].address();
   f.sharedMass = frontierBuffers[3].address();
   f.sharedCum = frontierBuffers[4].address();
+  f.sharedColour = frontierBuffers[5].address();
+  f.sharedFaceColour = frontierBuffers[6].address();
   f.sharedCount = uint32_t(normals.size());
   std::copy(g.levelCosRadius.begin(), g.levelCosRadius.end(), f.levelCosRadius);
   std::copy(g.levelSinRadius.begin(), g.levelSinRadius.end(), f.levelSinRadius);
@@ -545,7 +568,8 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
   f.coarseRatio = options.coarseRatio;
   f.maxBrdfShare = options.maxBrdfShare;
   f.productLevel = uint32_t(std::max(options.productLevel, 0));
-  f.flags = (options.visibility ? HT_FRONTIER_VISIBILITY : 0u) | (options.colourOrder ? HT_FRONTIER_COLOUR_ORDER : 0u);
+  f.flags = (options.visibility ? HT_FRONTIER_VISIBILITY : 0u) | (options.colourOrder ? HT_FRONTIER_COLOUR_ORDER : 0u) |
+            (options.colourControl ? HT_FRONTIER_COLOUR_CONTROL : 0u);
   f.capCosMargin = std::cos(kCapMargin);
   f.capSinMargin = std::sin(kCapMargin);
   layOutFrontierScratch(fp64 ? 8 : 4, f);

@@ -7,6 +7,7 @@
 #include <unordered_map>
 
 #include <glm/geometric.hpp>
+#include <glm/vec4.hpp>
 
 #include "healpix.h"
 #include "tree.h"
@@ -14,13 +15,76 @@
 namespace ht {
 namespace {
 
+// A node's chroma (FrontierColours::chroma, or its leaf's).
+glm::vec3 nodeChroma(const Environment& env, const FrontierColours& colours, int level, uint64_t node) {
+  return level < env.order ? colours.chroma[MaxAvgTree::levelOffset(level) + node]
+                           : glm::vec3(frontierLeafChroma(env.radiance[node]));
+}
+
+// The mean chroma of the directions a node of class `cls` draws: its
+// descent's where it is free, its own where caps cover it in part (the
+// control variate then takes the node's chroma, not its leaf's).
+glm::dvec3 colourMeanOf(const FrontierNode& nd, int cls) {
+  return glm::dvec3(cls == 1 ? nd.descentChroma : nd.chroma);
+}
+
+// FrontierTable::faceColour from the nodes' masses and classes.
+void sumFaceColours(FrontierTable& table) {
+  table.faceColour.fill(glm::dvec4(0.0));
+  for (const FrontierNode& nd : table.nodes)
+    table.faceColour[size_t(nd.node >> (2 * nd.level))] += nd.mass * glm::dvec4(colourMeanOf(nd, nd.visibility), 1.0);
+}
+
+// Frontier::children's BRDF factors on the product levels: each child's
+// BRDF x cos at its centre (`value`; 0 for a child without light or inside
+// a cap), never below the floor times the largest of its siblings'.
+void productFactors(const double w[4], const int cls[4], const double value[4], float floor, double b[4]) {
+  double top = 0.0;
+  for (int j = 0; j < 4; ++j) {
+    b[j] = w[j] > 0.0 && cls[j] != 0 ? value[j] : 0.0;
+    top = std::max(top, b[j]);
+  }
+  for (int j = 0; j < 4; ++j) b[j] = top > 0.0 ? std::max(b[j], double(floor) * top) : 1.0;
+}
+
+// The mean chroma of the leaf that the descent of a shared (cos+) table
+// reaches from a free node: by the product down to `productLevel`, by the
+// average tree below, where the node's own chroma is the mean (a leaf's is
+// its own).
+glm::dvec3 freeDescentChroma(const Environment& env, const HtGeometry& g, const FrontierColours& colours,
+                             const glm::vec3& n, float floor, int productLevel, int level, uint64_t node) {
+  if (level >= productLevel || level >= env.order) return glm::dvec3(nodeChroma(env, colours, level, node));
+  const uint64_t first = MaxAvgTree::levelOffset(level + 1) + 4 * node;
+  double w[4], value[4], b[4];
+  const int cls[4] = {1, 1, 1, 1};
+  for (int j = 0; j < 4; ++j) {
+    w[j] = env.tree.avgv[first + uint64_t(j)];
+    value[j] = double(std::max(glm::dot(g.centers[first + uint64_t(j)], n), 0.0f));
+  }
+  productFactors(w, cls, value, floor, b);
+  double p[4];
+  for (int j = 0; j < 4; ++j) p[j] = w[j] * b[j] * 1.0;
+  if (p[0] + p[1] + p[2] + p[3] > 0.0)
+    for (int j = 0; j < 4; ++j) w[j] = p[j];
+  const double sum = w[0] + w[1] + w[2] + w[3];
+  glm::dvec3 mean(0.0);
+  if (!(sum > 0.0)) return mean;
+  for (int j = 0; j < 4; ++j)
+    if (w[j] > 0.0)
+      mean += w[j] / sum *
+              freeDescentChroma(env, g, colours, n, floor, productLevel, level + 1, 4 * node + uint64_t(j));
+  return mean;
+}
+
 // Refines a table from the 12 faces. `factor(level, i, bound, estimate,
 // centre)` gives the bound B and estimate c of BRDF x cos (x visibility) over
 // node i of the tree layout and the BRDF x cos at its centre, and returns
-// false where the integrand is surely 0.
+// false where the integrand is surely 0. Nodes on `productLevel` and below
+// are exact for colour.
 template <class Factor>
-void refine(const Environment& env, const std::vector<glm::vec3>& centres, const std::vector<uint8_t>* colourBins,
-            int refinements, float coarseRatio, Factor&& factor, FrontierTable& table) {
+void refine(const Environment& env, const std::vector<glm::vec3>& centres, const FrontierColours& colours,
+            bool colourOrder, int productLevel, int refinements, float coarseRatio, Factor&& factor,
+            FrontierTable& table) {
   struct Candidate {
     FrontierNode node;
     bool split;
@@ -40,8 +104,9 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, const
     float bound, c, centre;
     if (!(avg > 0.0f) || !factor(level, i, bound, c, centre, visibility)) return;
     const double energy = double(avg) * healpix::pixelSolidAngle(level);
-    const FrontierNode nd{level, node, node << (2 * (order - level)), centres[i], energy * double(c), bound, centre,
-                          visibility};
+    const glm::vec3 chroma = nodeChroma(env, colours, level, node);
+    const FrontierNode nd{level,  node,   node << (2 * (order - level)), centres[i], energy * double(c), bound, centre,
+                          visibility, chroma, chroma, level >= productLevel};
     candidates.push_back({nd, false});
     // The variance a node adds grows with the spread of the factor over it.
     const double spread = std::max(0.0, double(bound) - double(c));
@@ -68,7 +133,7 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, const
   // The CDF's order: by colour bin and face, along the nested index inside
   // each (a counting sort: the nodes are in nested order).
   auto segment = [&](const FrontierNode& nd) {
-    const int bin = colourBins ? (*colourBins)[MaxAvgTree::levelOffset(nd.level) + nd.node] : 0;
+    const int bin = colourOrder ? colours.bins[MaxAvgTree::levelOffset(nd.level) + nd.node] : 0;
     return bin * 12 + int(nd.node >> (2 * nd.level));
   };
   table.faceStart.fill(0);
@@ -146,12 +211,12 @@ namespace {
 struct SharedKey {
   uint64_t tree;
   glm::vec3 normal;
-  int refinements;
+  int refinements, productLevel;
   float floor, coarseRatio;
   bool colourOrder;
   bool operator==(const SharedKey& o) const {
-    return tree == o.tree && normal == o.normal && refinements == o.refinements && floor == o.floor &&
-           coarseRatio == o.coarseRatio && colourOrder == o.colourOrder;
+    return tree == o.tree && normal == o.normal && refinements == o.refinements && productLevel == o.productLevel &&
+           floor == o.floor && coarseRatio == o.coarseRatio && colourOrder == o.colourOrder;
   }
 };
 struct SharedKeyHash {
@@ -166,18 +231,18 @@ struct SharedKeyHash {
 
 // The Lambert table of a flat surface's normal, per thread.
 const FrontierTable& sharedLambertTable(const HtPoint& point, const FrontierOptions& options,
-                                       const std::vector<uint8_t>& colourBins) {
+                                       const FrontierColours& colours) {
   thread_local std::unordered_map<SharedKey, std::unique_ptr<FrontierTable>, SharedKeyHash> cache;
   thread_local uint64_t cachedTree = 0;
-  const SharedKey key{point.env.tree.id, point.n, options.sharedRefinements, options.brdfFloor, options.coarseRatio,
-                      options.colourOrder};
+  const SharedKey key{point.env.tree.id, point.n,           options.sharedRefinements, options.productLevel,
+                      options.brdfFloor,  options.coarseRatio, options.colourOrder};
   // Tables of an earlier environment are never used again.
   if (cachedTree != key.tree || cache.size() >= kFrontierSharedTables) cache.clear();
   cachedTree = key.tree;
   std::unique_ptr<FrontierTable>& entry = cache[key];
   if (entry) return *entry;
   entry = std::make_unique<FrontierTable>();
-  buildSharedFrontierTable(point.env, point.geometry, point.n, options, colourBins, *entry);
+  buildSharedFrontierTable(point.env, point.geometry, point.n, options, colours, *entry);
   return *entry;
 }
 
@@ -188,8 +253,7 @@ glm::vec3 frontierSurfaceNormal(const Environment& env, const glm::vec3& normal)
 }
 
 void buildSharedFrontierTable(const Environment& env, const HtGeometry& g, const glm::vec3& n,
-                              const FrontierOptions& options, const std::vector<uint8_t>& colourBins,
-                              FrontierTable& table) {
+                              const FrontierOptions& options, const FrontierColours& colours, FrontierTable& table) {
   // Albedo and 1/pi scale every node alike: the shape is cos+ alone.
   auto factor = [&](int, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
     visibility = 1;
@@ -200,15 +264,51 @@ void buildSharedFrontierTable(const Environment& env, const HtGeometry& g, const
     c = std::max(centre, options.brdfFloor * bound);
     return true;
   };
-  refine(env, g.centers, options.colourOrder ? &colourBins : nullptr, options.sharedRefinements, options.coarseRatio,
-         factor, table);
+  refine(env, g.centers, colours, options.colourOrder, options.productLevel, options.sharedRefinements,
+         options.coarseRatio, factor, table);
+  // Every point of the plane descends from a free node alike.
+  for (FrontierNode& nd : table.nodes) {
+    nd.descentChroma = glm::vec3(
+        freeDescentChroma(env, g, colours, n, options.brdfFloor, options.productLevel, nd.level, nd.node));
+    nd.exactColour = true;
+  }
+  sumFaceColours(table);
 }
 
 int frontierRefinements(const FrontierOptions& options, int n) {
   return options.refinements >= 0 ? options.refinements : std::min(16 + std::max(n, 0), 256);
 }
 
-std::vector<uint8_t> frontierColourBins(const Environment& env) {
+glm::dvec3 frontierLeafChroma(const glm::vec3& radiance) {
+  const float l = luminance(radiance);
+  return l > 0.0f ? glm::dvec3(radiance) / double(l) : glm::dvec3(0.0);
+}
+
+namespace {
+
+// FrontierColours::chroma: radiance and luminance summed in double, level
+// by level from the leaves.
+std::vector<glm::vec3> chromaAboveLeaves(const Environment& env) {
+  const int order = env.order;
+  std::vector<glm::dvec4> sum(size_t(MaxAvgTree::levelOffset(order)));
+  auto leaf = [&](uint64_t i) {
+    const glm::vec3& r = env.radiance[i];
+    return glm::dvec4(glm::dvec3(r), double(luminance(r)));
+  };
+  for (int level = order - 1; level >= 0; --level)
+    for (uint64_t i = 0; i < (uint64_t(12) << (2 * level)); ++i) {
+      glm::dvec4 s(0.0);
+      for (uint64_t j = 0; j < 4; ++j)
+        s += level + 1 == order ? leaf(4 * i + j) : sum[MaxAvgTree::levelOffset(level + 1) + 4 * i + j];
+      sum[MaxAvgTree::levelOffset(level) + i] = s;
+    }
+  std::vector<glm::vec3> chroma(sum.size());
+  for (size_t i = 0; i < sum.size(); ++i)
+    chroma[i] = sum[i].w > 0.0 ? glm::vec3(glm::dvec3(sum[i]) / sum[i].w) : glm::vec3(0.0f);
+  return chroma;
+}
+
+std::vector<uint8_t> colourBins(const Environment& env) {
   const int order = env.order;
   std::vector<glm::vec3> sum(size_t(MaxAvgTree::levelOffset(order + 1)));
   std::copy(env.radiance.begin(), env.radiance.end(), sum.begin() + std::ptrdiff_t(MaxAvgTree::levelOffset(order)));
@@ -226,8 +326,17 @@ std::vector<uint8_t> frontierColourBins(const Environment& env) {
   return bins;
 }
 
+}  // namespace
+
+FrontierColours frontierColours(const Environment& env) {
+  FrontierColours c;
+  c.chroma = chromaAboveLeaves(env);
+  c.bins = colourBins(env);
+  return c;
+}
+
 void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const FrontierOptions& options, int n,
-                     const std::vector<uint8_t>& colourBins) {
+                     const FrontierColours& colours) {
   point_ = &point;
   order_ = point.env.order;
   productLevel_ = options.productLevel;
@@ -240,8 +349,9 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
   caps_.clear();
   if (options.visibility) lightCaps(point.scene, sp, point.geometry, caps_);
   touched_ = 0;
+  std::array<glm::dvec4, 12> faceColour;
   if (shared) {
-    table_ = &sharedLambertTable(point, options, colourBins);
+    table_ = &sharedLambertTable(point, options, colours);
     // The point's own caps, each with the faces it can reach. The cap of
     // the surface's own plane is left out: the table has no mass below it
     // but for nodes the horizon cuts, where cos+ is small.
@@ -264,15 +374,19 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
       class_.resize(t.nodes.size());
       cum_.resize(t.nodes.size());
     }
+    faceColour = t.faceColour;
     for (uint32_t f = 0; f < 12; ++f) {
       if (!(touched_ >> f & 1u)) continue;
+      glm::dvec4 colour(0.0);
       for (uint32_t k = t.faceStart[f]; k < t.faceStart[f + 1]; ++k) {
         const FrontierNode& nd = t.nodes[k];
         float factor;
         const int cls = frontierVisibility(faceCaps[f], nd.centre, nd.level, options.minPartialVisibility, factor);
         mass_[k] = cls == 1 ? nd.mass : nd.mass * double(factor);
         class_[k] = uint8_t(cls);
+        colour += mass_[k] * glm::dvec4(colourMeanOf(nd, cls), 1.0);
       }
+      faceColour[f] = colour;
       for (int bin = 0; bin < kFrontierColourBins; ++bin) {
         const size_t seg = size_t(bin * 12) + f;
         double acc = 0.0;
@@ -298,9 +412,14 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
       c = std::max(centre, options.brdfFloor * bound) * vis;
       return true;
     };
-    refine(point.env, point.geometry.centers, options.colourOrder ? &colourBins : nullptr,
+    refine(point.env, point.geometry.centers, colours, options.colourOrder, options.productLevel,
            frontierRefinements(options, n), options.coarseRatio, factor, own_);
+    sumFaceColours(own_);
+    faceColour = own_.faceColour;
   }
+  glm::dvec4 colour(0.0);
+  for (const glm::dvec4& c : faceColour) colour += c;
+  colourAverage_ = colour.w > 0.0 ? glm::dvec3(colour) / colour.w : glm::dvec3(0.0);
   const FrontierTable& t = *table_;
   total_ = 0.0;
   for (size_t seg = 0; seg < size_t(FrontierTable::kSegments); ++seg) {
@@ -355,18 +474,16 @@ void Frontier::children(int level, uint64_t parent, int parentClass, double w[4]
     }
   double b[4] = {1.0, 1.0, 1.0, 1.0};
   if (product) {
-    double top = 0.0;
+    double value[4];
     for (int j = 0; j < 4; ++j) {
       const glm::vec3& centre = g.centers[first + uint64_t(j)];
-      if (w[j] > 0.0 && cls[j] != 0)
-        b[j] = cosFactor_ ? double(std::max(glm::dot(centre, point_->n), 0.0f)) : double(point_->brdfValue(centre));
-      else
-        b[j] = 0.0;
-      top = std::max(top, b[j]);
+      value[j] = w[j] > 0.0 && cls[j] != 0 ? cosFactor_ ? double(std::max(glm::dot(centre, point_->n), 0.0f))
+                                                         : double(point_->brdfValue(centre))
+                                           : 0.0;
     }
     // A child the integrand may reach keeps a weight above 0: its BRDF
     // factor is at least the floor times its siblings' largest.
-    for (int j = 0; j < 4; ++j) b[j] = top > 0.0 ? std::max(b[j], double(brdfFloor_) * top) : 1.0;
+    productFactors(w, cls, value, brdfFloor_, b);
   }
   double p[4];
   for (int j = 0; j < 4; ++j) p[j] = w[j] * b[j] * v[j];
@@ -391,12 +508,19 @@ double Frontier::density(size_t k, uint64_t leaf) const {
   return p / healpix::pixelSolidAngle(order_);
 }
 
+glm::dvec3 Frontier::colourOf(size_t k, uint64_t leaf) const {
+  const FrontierNode& nd = table_->nodes[k];
+  return visibility(k) == 1 && nd.exactColour ? frontierLeafChroma(point_->env.radiance[leaf]) : glm::dvec3(nd.chroma);
+}
+
+glm::dvec3 Frontier::colourMean(size_t k) const { return colourMeanOf(table_->nodes[k], visibility(k)); }
+
 double Frontier::pdf(uint64_t leaf) const {
   const size_t k = nodeOfLeaf(leaf);
   return k < table_->nodes.size() && mass(k) > 0.0 ? density(k, leaf) : 0.0;
 }
 
-uint64_t Frontier::sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, double& pdf) const {
+uint64_t Frontier::sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, double& pdf, size_t* nodeOut) const {
   const FrontierTable& tb = *table_;
   // The segment, then the node, whose interval of the CDF holds x (one with
   // mass: empty intervals are never strictly above their start).
@@ -418,6 +542,7 @@ uint64_t Frontier::sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, 
   while (i > first && !(mass(tb.cdfOrder[i]) > 0.0)) --i;
   while (!(mass(tb.cdfOrder[i]) > 0.0)) ++i;
   const size_t k = tb.cdfOrder[i];
+  if (nodeOut) *nodeOut = k;
   double t = std::clamp((r - before(i)) / mass(k), 0.0, 1.0);
   double p = mass(k) / total_;
   uint64_t node = tb.nodes[k].node;
@@ -481,7 +606,7 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
   htOptions.budgetRefinements = -1;
   const HtPoint point(scene, sp, htOptions, tables);
   thread_local Frontier frontier;
-  frontier.build(point, sp, options, n, tables.colourBins());
+  frontier.build(point, sp, options, n, tables.colours());
   if (!frontier.shared()) counters.htNodes += uint64_t(12 + 4 * frontier.splits());
   if (!(frontier.totalMass() > 0.0)) return glm::vec3(0.0f);
   const Shading sh(scene, sp, counters);
@@ -496,6 +621,22 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
                                            frontier.totalMass(), n)
                        : frontierBrdfCount(frontier, options, n);
   const int nt = n - nb;
+  // The control variate's kappa M / n: where the table's shape is cos+, a
+  // table direction's f / p is about the albedo's colour x M x the
+  // direction's chroma (a shared table's mass leaves out albedo / pi, a
+  // Lambert point's own table holds the albedo's luminance).
+  glm::dvec3 colourScale(0.0);
+  if (options.colourControl) {
+    if (frontier.shared()) {
+      colourScale = glm::dvec3(sh.material.diffuse) * double(kInvPi);
+    } else if (sh.material.type == MaterialType::Lambert) {
+      const float l = luminance(sh.material.diffuse);
+      if (l > 0.0f) colourScale = glm::dvec3(sh.material.diffuse) / double(l);
+    }
+    colourScale = colourScale * frontier.totalMass() / double(n);
+  }
+  const bool colourControl = colourScale != glm::dvec3(0.0);
+  const glm::dvec3& colourAverage = frontier.colourAverage();
   glm::dvec3 sum(0.0);
   // Systematic points over the table's CDF, one offset per pixel; inside
   // its leaf each point takes the sampler's point of sample i, dimension 0.
@@ -505,7 +646,9 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
     glm::dvec3 hp;
     double pt;
     sampler.startSample(uint32_t(i));
-    const uint64_t leaf = frontier.sample((double(i) + u) / nt, sampler.get2D(), hp, pt);
+    size_t k;
+    const uint64_t leaf = frontier.sample((double(i) + u) / nt, sampler.get2D(), hp, pt, &k);
+    if (colourControl) sum += colourScale * (colourAverage - frontier.colourOf(k, leaf));
     const glm::vec3 wi = env.fromHealpixFrame(hp);
     const double pb = nb > 0 ? double(bsdfPdf(bm, sh.woLocal, sh.frame.toLocal(wi))) : 0.0;
     const glm::vec3 f = sh.reflected(wi, env.radiance[leaf]);
@@ -523,7 +666,8 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
     if (f != glm::vec3(0.0f)) sum += glm::dvec3(f) / (nt * frontier.pdf(leaf) + nb * pb);
   }
   counters.directions += uint64_t(n);
-  return glm::vec3(sum);
+  // The control variate can take a dark channel below 0, rarely (docs/ht.md).
+  return glm::vec3(glm::max(sum, glm::dvec3(0.0)));
 }
 
 }  // namespace ht

@@ -38,7 +38,17 @@
 // share of the n directions follows its estimated share of the light
 // (frontierLobeCount), and the balance heuristic combines the two.
 //
-// The estimate is sum f(w) / (n_t p_t(w) + n_b p_b(w)) over all n directions.
+// The estimate is sum f(w) / (n_t p_t(w) + n_b p_b(w)) over all n directions,
+// plus a control variate on colour where the table's shape is cos+ (flat
+// surfaces, Lambert points). The density follows luminance, so each
+// channel's f / p varies with the chroma (radiance / luminance) of the light
+// it hits. Each table direction adds kappa M / n x (mu - chroma): its chroma
+// (its leaf's where the node is free and its descent exact for colour,
+// else its node's), mu the mean of that chroma, which the table gives
+// exactly, M the point's total mass and kappa the albedo's colour per unit
+// of the mass (FrontierOptions::colourControl). Its mean is 0. A channel
+// the term would take below 0 is set to 0, which happens rarely and only
+// where the channel is dark (docs/ht.md).
 #pragma once
 
 #include <array>
@@ -46,6 +56,7 @@
 #include <vector>
 
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 
 #include "ht.h"
 
@@ -71,6 +82,7 @@ struct FrontierOptions {
   // visibility down to this level, by the environment x visibility below it.
   int productLevel = 5;
   bool colourOrder = true;      // the CDF's nodes by colour (else along the nested index)
+  bool colourControl = true;    // the control variate on colour
 };
 
 // A spherical cap of blocked directions seen from a shading point (HEALPix
@@ -92,10 +104,20 @@ int frontierVisibility(const std::vector<LightCap>& caps, const glm::vec3& centr
 
 // The colour bins that order a frontier's CDF.
 constexpr int kFrontierColourBins = 16;
-// Per node of the environment's average tree (its layout), its colour bin:
-// (blue - red) / (red + green + blue) of its mean radiance, from -1 to 1 in
-// kFrontierColourBins equal steps (the middle one where it is black).
-std::vector<uint8_t> frontierColourBins(const Environment& env);
+// Per node of the environment's average tree (its layout):
+// - `bins`, its colour bin: (blue - red) / (red + green + blue) of its mean
+//   radiance, from -1 to 1 in kFrontierColourBins equal steps (the middle
+//   one where it is black);
+// - `chroma` (the levels above the leaves only), its radiance over its
+//   luminance, both summed over its leaves: the mean of frontierLeafChroma
+//   over a descent by the average tree (0 where it is black).
+struct FrontierColours {
+  std::vector<uint8_t> bins;
+  std::vector<glm::vec3> chroma;
+};
+FrontierColours frontierColours(const Environment& env);
+// A leaf's radiance over its luminance (0 where it is black).
+glm::dvec3 frontierLeafChroma(const glm::vec3& radiance);
 
 struct FrontierNode {
   int level;
@@ -106,6 +128,12 @@ struct FrontierNode {
   float brdfBound;     // B
   float brdfCentre;    // BRDF x cos at the centre
   int visibility;      // class under the caps the table was built with: 1 free, 2 partly covered
+  glm::vec3 chroma;    // FrontierColours::chroma of the node
+  // The mean chroma of the leaf a free descent from the node reaches, where
+  // `exactColour` (a shared table's nodes, and below the descent's product
+  // levels, where it follows the average tree); else `chroma`.
+  glm::vec3 descentChroma;
+  bool exactColour;
 };
 
 // Nodes sorted along the nested index, with their masses, and the order of
@@ -120,6 +148,10 @@ struct FrontierTable {
   std::array<uint32_t, 13> faceStart{};           // first node of each face, and the end
   double coarseShare = 0.0;  // share of the mass in nodes coarse for the BRDF
   int splits = 0;
+  // Per face: sums over its nodes, along the nested index, of mass x the
+  // mean chroma of their directions (Frontier::colourMean; xyz) and of mass
+  // (w).
+  std::array<glm::dvec4, 12> faceColour{};
 };
 
 // The frontier a shading point samples: a table and the point's own masses.
@@ -130,9 +162,9 @@ class Frontier {
   // stays valid until the thread builds a frontier under another
   // environment, or more than kFrontierSharedTables of them).
   // `point` is `sp` seen by HT (its visibility caps are not used);
-  // `colourBins`: frontierColourBins of the point's environment.
+  // `colours`: frontierColours of the point's environment.
   void build(const HtPoint& point, const ShadingPoint& sp, const FrontierOptions& options, int n,
-             const std::vector<uint8_t>& colourBins);
+             const FrontierColours& colours);
 
   const FrontierTable& table() const { return *table_; }
   double totalMass() const { return total_; }
@@ -145,10 +177,20 @@ class Frontier {
   size_t size() const { return table_->nodes.size(); }
 
   // Draws the direction of the point x in [0, 1) of the mass CDF (HEALPix
-  // frame); `jitter` places it inside its leaf. Returns the leaf.
-  uint64_t sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, double& pdf) const;
+  // frame); `jitter` places it inside its leaf. Returns the leaf; `node`,
+  // when given, receives the table node it lies in.
+  uint64_t sample(double x, const glm::vec2& jitter, glm::dvec3& dirHp, double& pdf, size_t* node = nullptr) const;
   // Density of the direction in `leaf` (0 outside the frontier).
   double pdf(uint64_t leaf) const;
+
+  // The control variate on colour: a direction drawn in node k that
+  // reaches `leaf` has chroma colourOf(k, leaf) (its leaf's where the node
+  // is free and exactColour, else the node's), whose mean over the node's
+  // directions is colourMean(k) (descentChroma where it is free, else its
+  // chroma); `colourAverage` is the mass-weighted mean of the means.
+  glm::dvec3 colourOf(size_t k, uint64_t leaf) const;
+  glm::dvec3 colourMean(size_t k) const;
+  const glm::dvec3& colourAverage() const { return colourAverage_; }
 
  private:
   const HtPoint* point_ = nullptr;
@@ -169,6 +211,7 @@ class Frontier {
   std::vector<uint8_t> class_;
   std::array<double, FrontierTable::kSegments + 1> segCum_{};  // mass of the segments before each
   double total_ = 0.0;
+  glm::dvec3 colourAverage_{0.0};
 
   bool touched(const FrontierNode& nd) const { return touched_ >> (nd.node >> (2 * nd.level)) & 1u; }
   double mass(size_t k) const;
@@ -210,11 +253,10 @@ int frontierBrdfCount(double coarseShare, const FrontierOptions& options, int n)
 // shading point sees it (frontierSurfaceNormal of the world normal).
 glm::vec3 frontierSurfaceNormal(const Environment& env, const glm::vec3& normal);
 void buildSharedFrontierTable(const Environment& env, const HtGeometry& geometry, const glm::vec3& n,
-                              const FrontierOptions& options, const std::vector<uint8_t>& colourBins,
-                              FrontierTable& table);
+                              const FrontierOptions& options, const FrontierColours& colours, FrontierTable& table);
 
 // HT frontier estimate at a shading point with exactly n directions.
-// `tables`: the geometry of the map's order and the colour bins.
+// `tables`: the geometry of the map's order and the frontier's colours.
 glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const FrontierOptions& options, int n,
                              Rng& rng, PixelSampler& sampler, EstimateCounters& counters, const MethodTables& tables);
 

@@ -115,7 +115,7 @@ MethodTables prepareTables(const Scene& scene, Method method, const MethodOption
         healpixNodeCenters(WisPoint::orderFor(env, options.wisOrder)));
   if (method == Method::Tsis) t.tsis = std::make_shared<const TsisTable>(buildTsisTable(env));
   if (method == Method::HtFrontier)
-    t.frontierBins = std::make_shared<const std::vector<uint8_t>>(frontierColourBins(env));
+    t.frontierColours = std::make_shared<const FrontierColours>(frontierColours(env));
   return t;
 }
 
@@ -140,6 +140,7 @@ glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method meth
   if (method == Method::HtFrontier) {
     FrontierOptions options;
     options.refinements = methodOptions.frontierRefinements;
+    options.colourControl = methodOptions.frontierColourControl;
     return estimateHtFrontier(scene, sp, options, spp, rng, sampler, counters, tables);
   }
   if (method == Method::Ris) return estimateRis(scene, sp, spp, methodOptions.risCandidates, sampler, counters);

@@ -59,6 +59,7 @@ struct MethodOptions {
   int risCandidates = 32;                        // ris: candidates M per resampled sample
   int wisOrder = 5;                              // wis*: HEALPix order of the sampled product (Nside 2^order)
   int frontierRefinements = -1;                  // ht-frontier: most node splits per shading point (< 0: 16 + spp, at most 256)
+  bool frontierColourControl = true;             // ht-frontier: the control variate on colour
   SamplerKind sampler = SamplerKind::Stratified;  // every method: the per-pixel sample points (sampler.h)
 };
 

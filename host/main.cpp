@@ -47,6 +47,7 @@ struct RenderOptions {
   bool repairNonFinite = false;
   int wisOrder = 5;
   int frontierRefinements = -1;
+  std::string frontierColourControl = "on";
   std::string htSequence = "sphere";
   std::string sampler = "stratified";
   std::string maxMemory;
@@ -176,6 +177,7 @@ RenderSettings renderSettings(const RenderOptions& o, const Scene& scene, Method
   rs.options.risCandidates = o.risCandidates;
   rs.options.wisOrder = o.wisOrder;
   rs.options.frontierRefinements = o.frontierRefinements;
+  rs.options.frontierColourControl = o.frontierColourControl == "on";
   rs.options.htSphereSequence = o.htSequence == "sphere";
   rs.options.sampler = o.sampler == "independent" ? SamplerKind::Independent : SamplerKind::Stratified;
   rs.options.brdfBounds =
@@ -195,6 +197,7 @@ nlohmann::json renderStats(const RenderOptions& o, const Scene& scene, const Ren
       {"brdf_bounds", o.brdfBounds},
       {"ht_sequence", o.htSequence},
       {"sampler", o.sampler},
+      {"frontier_colour_control", o.frontierColourControl},
       {"width", rs.width},
       {"height", rs.height},
       {"seed", rs.seed},
@@ -378,6 +381,10 @@ void addRenderOptions(CLI::App& r, RenderOptions& o) {
   r.add_option("--frontier-refinements", o.frontierRefinements,
                      "ht-frontier: most node splits per shading point (frontier of 12 + 3 x this nodes; -1: 16 + spp, at most 256)")
       ->check(CLI::Range(-1, 4096))
+      ->capture_default_str();
+  r.add_option("--frontier-colour-control", o.frontierColourControl,
+                     "ht-frontier: the control variate on colour (each table direction's chroma against its exact mean)")
+      ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   r.add_flag("--repair-nonfinite", o.repairNonFinite,
                   "set NaN/Inf texels of the environment to 0 with a warning instead of refusing the map");

@@ -71,7 +71,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
   if (in.method == Method::HtFrontier) {
     tables += add("ht-frontier shared tables (per thread, at most)",
                   uint64_t(std::max(in.threads, 1)) * kFrontierSharedTables * kFrontierSharedTableBytes);
-    tables += add("ht-frontier colour bins (and their sums while built)", nodes * 13);
+    tables += add("ht-frontier colour bins and chroma (and their sums while built)", nodes * 16);
   }
   uint64_t sat = 0;
   if (in.method == Method::Tsis) {

@@ -1,6 +1,7 @@
 #include "tables.h"
 
 #include "error.h"
+#include "ht_frontier.h"
 #include "scene.h"
 
 namespace ht {
@@ -27,9 +28,9 @@ const std::shared_ptr<const TsisTable>& MethodTables::tsisTable() const {
   return tsis;
 }
 
-const std::vector<uint8_t>& MethodTables::colourBins() const {
-  if (!frontierBins) throw Error("internal: ht-frontier colour bins used but not prepared");
-  return *frontierBins;
+const FrontierColours& MethodTables::colours() const {
+  if (!frontierColours) throw Error("internal: ht-frontier colours used but not prepared");
+  return *frontierColours;
 }
 
 }  // namespace ht

@@ -1,6 +1,6 @@
 // The tables methods read at every shading point (HEALPix geometry, BRDF
 // bound tables, wis's node centres, tsis's summed-area table, ht-frontier's
-// colour bins). A render builds the ones its method needs before it starts
+// colours). A render builds the ones its method needs before it starts
 // (prepareTables in integrator.h), so that its time leaves them out, owns
 // them, and passes them down: no process-wide caches.
 #pragma once
@@ -16,6 +16,7 @@ namespace ht {
 struct HtGeometry;
 class BrdfTable;
 struct TsisTable;
+struct FrontierColours;
 struct Scene;
 struct Material;
 
@@ -24,7 +25,7 @@ struct MethodTables {
   std::vector<std::shared_ptr<const BrdfTable>> brdfTables;   // ht* with table bounds: per scene material
   std::shared_ptr<const std::vector<glm::vec3>> wisCenters;   // wis*: node centres up to its order
   std::shared_ptr<const TsisTable> tsis;                      // tsis
-  std::shared_ptr<const std::vector<uint8_t>> frontierBins;   // ht-frontier: colour bin per average-tree node
+  std::shared_ptr<const FrontierColours> frontierColours;     // ht-frontier: colour bins and chroma per average-tree node
 
   // Each throws an internal ht::Error when its table was not prepared.
   const HtGeometry& geometry() const;
@@ -32,7 +33,7 @@ struct MethodTables {
   const BrdfTable& brdfTable(const Scene& scene, const Material* material) const;
   const std::vector<glm::vec3>& wis() const;
   const std::shared_ptr<const TsisTable>& tsisTable() const;
-  const std::vector<uint8_t>& colourBins() const;
+  const FrontierColours& colours() const;
 };
 
 }  // namespace ht

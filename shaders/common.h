@@ -96,6 +96,10 @@
 #define HT_FRONTIER_OWN 0xFFFFFFFFu
 #define HT_FRONTIER_VISIBILITY 1u
 #define HT_FRONTIER_COLOUR_ORDER 2u
+#define HT_FRONTIER_COLOUR_CONTROL 4u
+// ht-frontier: chunks of the chroma of the average tree's nodes above the
+// leaves (HT_HT_VEC3_CHUNK_SHIFT elements each): maps up to Nside 2048.
+#define HT_FRONTIER_CHROMA_CHUNKS 4
 
 #define HT_MATERIAL_LAMBERT 0
 #define HT_MATERIAL_PHONG 1
@@ -135,6 +139,7 @@ layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierReal
 #endif
 layout(buffer_reference) buffer FrontierNodes;
 layout(buffer_reference) buffer FrontierHeaders;
+layout(buffer_reference) buffer FrontierColourNodes;
 #if HT_FP64
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer WisScratch { double v[]; };
 #else
@@ -308,6 +313,11 @@ struct GpuFrontierNode {
   uint visibility;   // 1 free, 2 partly covered
   uint link;         // while refining: the candidate's parent
 };
+// A shared table's node's FrontierNode::chroma and descentChroma.
+struct GpuFrontierColour {
+  vec3 chroma;
+  vec3 descent;
+};
 struct GpuFrontierHeader {
   uint segStart[HT_FRONTIER_SEGMENTS + 1];  // first CDF position of each segment, and the end
   uint faceStart[13];                        // first node of each face, and the end
@@ -339,6 +349,9 @@ struct GpuFrontierScene {
   HT_CHUNK_REF(FrontierUints) sharedOrder;
   HT_CHUNK_REF(FrontierReals) sharedMass;
   HT_CHUNK_REF(FrontierReals) sharedCum;
+  HT_CHUNK_REF(FrontierColourNodes) sharedColour;
+  HT_CHUNK_REF(FrontierReals) sharedFaceColour;  // per table, FrontierTable::faceColour (12 x 4)
+  HT_CHUNK_REF(Vec3Chunk) chroma[HT_FRONTIER_CHROMA_CHUNKS];  // FrontierColours::chroma
   vec3 sharedNormal[HT_FRONTIER_MAX_SHARED];  // HEALPix frame, as a point on the plane sees it
   float levelCosRadius[32];
   float levelSinRadius[32];
@@ -357,6 +370,7 @@ struct GpuFrontierScene {
   uint offHeader, offNodes, offOrder, offMass, offCum;
   uint offCandidates, offCandidateMass, offHeapKey, offHeapIndex;
   uint offPointMass, offPointClass, offPointCum, offSegCum;
+  uint offColourAverage;  // Frontier::colourAverage: three reals
   uint pixelBytes;
 };
 
@@ -385,6 +399,7 @@ layout(buffer_reference, scalar, buffer_reference_align = 8) buffer HtLeafList {
 layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer FrontierSceneRef { GpuFrontierScene f; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierNodes { GpuFrontierNode v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierHeaders { GpuFrontierHeader v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierColourNodes { GpuFrontierColour v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer FrontierPoints { GpuFrontierPoint v[]; };
 #endif
 
@@ -425,11 +440,12 @@ struct GpuPush {
 #ifdef __cplusplus
 static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 128);
 static_assert(sizeof(GpuFrontierNode) == 24 && sizeof(GpuFrontierHeader) == 4 * (HT_FRONTIER_SEGMENTS + 20) &&
-              sizeof(GpuFrontierPoint) == 32 && offsetof(GpuFrontierPoint, total) == 16);
-static_assert(offsetof(GpuFrontierScene, sharedNormal) == 48 &&
-              offsetof(GpuFrontierScene, levelCosRadius) == 48 + 12 * HT_FRONTIER_MAX_SHARED &&
-              offsetof(GpuFrontierScene, sharedCount) == 48 + 12 * HT_FRONTIER_MAX_SHARED + 256 &&
-              sizeof(GpuFrontierScene) == 48 + 12 * HT_FRONTIER_MAX_SHARED + 256 + 4 * 26);
+              sizeof(GpuFrontierPoint) == 32 && offsetof(GpuFrontierPoint, total) == 16 &&
+              sizeof(GpuFrontierColour) == 24);
+static_assert(offsetof(GpuFrontierScene, sharedNormal) == 96 &&
+              offsetof(GpuFrontierScene, levelCosRadius) == 96 + 12 * HT_FRONTIER_MAX_SHARED &&
+              offsetof(GpuFrontierScene, sharedCount) == 96 + 12 * HT_FRONTIER_MAX_SHARED + 256 &&
+              sizeof(GpuFrontierScene) == 96 + 12 * HT_FRONTIER_MAX_SHARED + 256 + 4 * 28);
 static_assert(offsetof(GpuScene, htBrdfTables) - offsetof(GpuScene, camPosition) == 112 &&
               offsetof(GpuScene, frontier) - offsetof(GpuScene, camPosition) == 120);
 static_assert(offsetof(GpuScene, tsisSat) - offsetof(GpuScene, camPosition) == 96 &&

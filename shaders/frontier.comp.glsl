@@ -34,6 +34,7 @@ void main() {
       gPixel.done = end >= pc.spp ? 1u : 0u;
     }
   }
-  // The estimate is the sum of the n weighted directions.
-  pixelEnd(job, vec3(sumFromBits(gPixel.sum)));
+  // The estimate is the sum of the n weighted directions; a channel the
+  // control variate on colour takes below 0 is set to 0.
+  pixelEnd(job, vec3(max(sumFromBits(gPixel.sum), accvec3(0.0))));
 }

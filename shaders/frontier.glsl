@@ -42,6 +42,11 @@ FrontierUints gFrPointClass;
 uint gFrTouched;
 hreal gFrTotal;
 bool gFrLambert;
+// The table is a shared one (its colours in gFrColour), and the point's
+// Frontier::colourAverage.
+bool gFrShared;
+FrontierColourNodes gFrColour;
+hreal gFrColourR, gFrColourG, gFrColourB;
 
 // lightCaps: per cap its axis and the sine and cosine of its half-angle
 // less the margin. gFrCaps: the caps the point applies (bits).
@@ -164,6 +169,42 @@ uint frontierSegment(GpuFrontierNode nd) {
   return frontierColourBin(levelOffset(nd.level) + nd.node) * 12u + frontierFace(nd);
 }
 
+// ---------------------------------------------------------------- colour
+
+// frontierLeafChroma: a leaf's radiance over its luminance.
+hvec3 frontierLeafChroma(vec3 radiance) {
+  float l = luminance(radiance);
+  if (!(l > 0.0)) return hvec3(0.0);
+  return hvec3(divF(hreal(radiance.x), hreal(l)), divF(hreal(radiance.y), hreal(l)), divF(hreal(radiance.z), hreal(l)));
+}
+
+// A node's chroma (nodeChroma): FrontierColours::chroma above the leaves.
+vec3 frontierNodeChroma(uint level, uint node) {
+  if (level >= ht.order) return vec3(frontierLeafChroma(envRadiance(node)));
+  uint i = levelOffset(level) + node;
+  return gFs.chroma[i >> HT_HT_VEC3_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC3_CHUNK_SHIFT) - 1u)];
+}
+
+// FrontierNode::chroma and descentChroma of the table's node k (an own
+// table's node's descent is exact for colour only below the product
+// levels, where its mean is its chroma).
+vec3 frontierChroma(uint k) {
+  if (gFrShared) return gFrColour.v[k].chroma;
+  GpuFrontierNode nd = tableNode(k);
+  return frontierNodeChroma(nd.level, nd.node);
+}
+vec3 frontierDescentChroma(uint k) { return gFrShared ? gFrColour.v[k].descent : frontierChroma(k); }
+
+// colourMeanOf: the mean chroma of the directions node k of class cls draws.
+vec3 frontierColourMean(uint k, uint cls) { return cls == 1u ? frontierDescentChroma(k) : frontierChroma(k); }
+
+// sumFaceColours' terms: mass x the mean chroma, added to `acc`.
+hvec3 frontierAddColour(hvec3 acc, hreal mass, vec3 mean) {
+  return hvec3(addF(acc.x, mulF(mass, hreal(mean.x))), addF(acc.y, mulF(mass, hreal(mean.y))),
+               addF(acc.z, mulF(mass, hreal(mean.z))));
+}
+hvec3 frontierAdd3(hvec3 a, hvec3 b) { return hvec3(addF(a.x, b.x), addF(a.y, b.y), addF(a.z, b.z)); }
+
 // ---------------------------------------------------------------- own table
 
 // The refinement's candidates: a node, its mass, and in `visibility` above
@@ -283,6 +324,7 @@ void frontierFinishTable(uint count, uint n) {
 
 // The pixel's own table.
 void frontierUseOwn() {
+  gFrShared = false;
   gFrStride = gFrPixels;
   gFrHeader = frontierUints(gFs.offHeader);
   gFrNodes = frontierNodes(gFs.offNodes);
@@ -362,6 +404,8 @@ void frontierUseShared(uint t) {
   gFrOrder = FrontierUints(uint64_t(s.f.sharedOrder) + uint64_t(nodeBase) * 4ul);
   gFrMass = FrontierReals(uint64_t(s.f.sharedMass) + uint64_t(nodeBase) * uint64_t(kFrontierRealBytes));
   gFrCum = FrontierReals(uint64_t(s.f.sharedCum) + uint64_t(cumBase) * uint64_t(kFrontierRealBytes));
+  gFrColour = FrontierColourNodes(uint64_t(s.f.sharedColour) + uint64_t(nodeBase) * 24ul);
+  gFrShared = true;
 }
 
 // The shared table of a flat Lambert point's normal, or kFrontierNone.
@@ -385,26 +429,41 @@ void frontierDropOwnPlane() {
 
 // Frontier::build on a shared table: the point's caps (less its own
 // plane's) on the faces they reach.
-void frontierApplyCaps() {
+hvec3 frontierApplyCaps(uint table, out hreal colourMass) {
   frontierDropOwnPlane();
   float cR = gFs.levelCosRadius[0], sR = gFs.levelSinRadius[0];
   gFrTouched = 0u;
+  hvec3 colourSum = hvec3(0.0);
+  colourMass = 0.0;
   for (uint f = 0u; f < 12u; ++f) {
     uint faceCaps = 0u;
     vec3 centre = htCenter(f);
     for (uint k = 0u; k < gFrCapCount; ++k)
       if (((gFrCaps >> k) & 1u) != 0u && dot3(centre, gFrCapAxis[k]) > frontierCosOutside(k, cR, sR))
         faceCaps |= 1u << k;
-    if (faceCaps == 0u) continue;
+    if (faceCaps == 0u) {
+      uint at = (table * 12u + f) * 4u;
+      hvec3 c = hvec3(gFs.sharedFaceColour.v[at], gFs.sharedFaceColour.v[at + 1u], gFs.sharedFaceColour.v[at + 2u]);
+      colourSum = frontierAdd3(colourSum, c);
+      colourMass = addF(colourMass, gFs.sharedFaceColour.v[at + 3u]);
+      continue;
+    }
     gFrTouched |= 1u << f;
+    hvec3 colour = hvec3(0.0);
+    hreal faceMass = 0.0;
     for (uint k = faceStart(f); k < faceStart(f + 1u); ++k) {
       GpuFrontierNode nd = tableNode(k);
       float factor;
       uint cls = frontierClass(htCenter(levelOffset(nd.level) + nd.node), nd.level, faceCaps, factor);
       hreal mass = tableMass(k);
-      gFrPointMass.v[(k) * gFrPixels] = cls == 1u ? mass : mulF(mass, hreal(factor));
+      hreal pointMass = cls == 1u ? mass : mulF(mass, hreal(factor));
+      gFrPointMass.v[(k) * gFrPixels] = pointMass;
       gFrPointClass.v[(k) * gFrPixels] = cls;
+      colour = frontierAddColour(colour, pointMass, frontierColourMean(k, cls));
+      faceMass = addF(faceMass, pointMass);
     }
+    colourSum = frontierAdd3(colourSum, colour);
+    colourMass = addF(colourMass, faceMass);
     for (uint bin = 0u; bin < uint(HT_FRONTIER_SEGMENTS) / 12u; ++bin) {
       uint seg = bin * 12u + f;
       hreal acc = 0.0;
@@ -414,6 +473,7 @@ void frontierApplyCaps() {
       }
     }
   }
+  return colourSum;
 }
 
 // ---------------------------------------------------------------- sampling
@@ -526,7 +586,7 @@ hreal frontierBefore(bool own, uint first, uint i) {
 
 // Frontier::sample: the leaf of the point x of the mass CDF, its direction
 // (HEALPix frame) at `jitter` inside it and its density.
-uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
+uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf, out uint nodeK) {
   hreal target = mulF(x, gFrTotal);
   uint above = 1u, len = uint(HT_FRONTIER_SEGMENTS);  // std::upper_bound over the segments' starts
   while (len > 0u) {
@@ -555,6 +615,7 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
   while (i > first && !(frontierMass(tableOrder(i)) > 0.0)) --i;
   while (!(frontierMass(tableOrder(i)) > 0.0)) ++i;
   uint k = tableOrder(i);
+  nodeK = k;
   hreal mass = frontierMass(k);
   hreal t = clamp(divF(subF(r, frontierBefore(own, first, i)), mass), hreal(0.0), hreal(1.0));
   hreal p = divF(mass, gFrTotal);
@@ -582,6 +643,30 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf) {
   pdf = divF(p, envPixelSolidAngle());
   dirHp = pixToVec(ht.order, node, jitter.x, jitter.y);
   return node;
+}
+
+// Frontier::colourOf: the chroma of a direction drawn in node k that
+// reached `leaf`.
+hvec3 frontierColourOf(uint k, uint leaf) {
+  bool exact = gFrShared || tableNode(k).level >= gFs.productLevel;
+  return frontierVisibility(k) == 1u && exact ? frontierLeafChroma(envRadiance(leaf)) : hvec3(frontierChroma(k));
+}
+
+// An own table's sums of sumFaceColours, face by face.
+hvec3 frontierOwnColourSum(out hreal colourMass) {
+  hvec3 colourSum = hvec3(0.0);
+  colourMass = 0.0;
+  for (uint f = 0u; f < 12u; ++f) {
+    hvec3 colour = hvec3(0.0);
+    hreal mass = 0.0;
+    for (uint k = faceStart(f); k < faceStart(f + 1u); ++k) {
+      colour = frontierAddColour(colour, tableMass(k), frontierColourMean(k, tableNode(k).visibility));
+      mass = addF(mass, tableMass(k));
+    }
+    colourSum = frontierAdd3(colourSum, colour);
+    colourMass = addF(colourMass, mass);
+  }
+  return colourSum;
 }
 
 // ---------------------------------------------------------------- estimate
@@ -631,12 +716,15 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
   gFrTouched = 0u;
   uint table = planar && ht.woLocal.z > 0.0 ? frontierSharedTable() : kFrontierNone;
   gFrLambert = material.type == HT_MATERIAL_LAMBERT || table != kFrontierNone;
+  hvec3 colourSum = hvec3(0.0);
+  hreal colourMass = 0.0;
   if (table != kFrontierNone) {
     frontierUseShared(table);
-    frontierApplyCaps();
+    colourSum = frontierApplyCaps(table, colourMass);
   } else {
     frontierRefine(n);
     htNodes += 12u + 4u * tableWord(kFrontierSplits);
+    colourSum = frontierOwnColourSum(colourMass);
   }
   frontierSegments();
   if (!(gFrTotal > 0.0)) return false;
@@ -647,6 +735,12 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
   pt.nt = n - pt.nb;
   pt.total = hrealToBits(gFrTotal);
   pt.u = hrealToBits(hreal(rngNext(rng)));
+  // Frontier::colourAverage.
+  FrontierReals store = frontierReals(gFs.offColourAverage);
+  bool some = colourMass > 0.0;
+  store.v[0u * gFrPixels] = some ? divF(colourSum.x, colourMass) : hreal(0.0);
+  store.v[1u * gFrPixels] = some ? divF(colourSum.y, colourMass) : hreal(0.0);
+  store.v[2u * gFrPixels] = some ? divF(colourSum.z, colourMass) : hreal(0.0);
   frontierPoint().v[0] = pt;
   return true;
 }
@@ -666,6 +760,10 @@ GpuFrontierPoint frontierResume(vec3 position, vec3 normal, vec3 wo, GpuMaterial
   }
   gFrTouched = pt.touched;
   gFrTotal = hrealFromBits(pt.total);
+  FrontierReals store = frontierReals(gFs.offColourAverage);
+  gFrColourR = store.v[0u * gFrPixels];
+  gFrColourG = store.v[1u * gFrPixels];
+  gFrColourB = store.v[2u * gFrPixels];
   return pt;
 }
 
@@ -680,6 +778,21 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
     bm.diffuse = vec3(0.0);
     bm.specularProbability = luminance(bm.specular) > 0.0 ? 1.0 : 0.0;  // specularLobeProbability
   }
+  // The control variate's kappa M / n (estimateHtFrontier).
+  hvec3 colourScale = hvec3(0.0);
+  if ((gFs.flags & HT_FRONTIER_COLOUR_CONTROL) != 0u) {
+    vec3 d = sh.material.diffuse;
+    if (pt.table != kFrontierNone) {
+      colourScale = hvec3(mulF(hreal(d.x), hreal(kInvPi)), mulF(hreal(d.y), hreal(kInvPi)), mulF(hreal(d.z), hreal(kInvPi)));
+    } else if (sh.material.type == HT_MATERIAL_LAMBERT) {
+      float l = luminance(d);
+      if (l > 0.0) colourScale = hvec3(divF(hreal(d.x), hreal(l)), divF(hreal(d.y), hreal(l)), divF(hreal(d.z), hreal(l)));
+    }
+    hreal n = hreal(pt.nt + pt.nb);
+    colourScale = hvec3(divF(mulF(colourScale.x, gFrTotal), n), divF(mulF(colourScale.y, gFrTotal), n),
+                        divF(mulF(colourScale.z, gFrTotal), n));
+  }
+  bool colourControl = colourScale != hvec3(0.0);
   uint j = begin;
   for (; j < end; ++j) {
     directions += 1u;
@@ -691,7 +804,13 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
       precise hreal x = (hreal(j) + u) / nt;
       vec2 jitter = samplerNext2D(smp);
       hvec3 hp;
-      leaf = frontierSample(x, jitter, hp, ptable);
+      uint k;
+      leaf = frontierSample(x, jitter, hp, ptable, k);
+      if (colourControl) {
+        hvec3 v = frontierColourOf(k, leaf);
+        hvec3 d = hvec3(subF(gFrColourR, v.x), subF(gFrColourG, v.y), subF(gFrColourB, v.z));
+        sum = frontierAdd3(sum, hvec3(mulF(colourScale.x, d.x), mulF(colourScale.y, d.y), mulF(colourScale.z, d.z)));
+      }
       wi = fromHealpixFrame(hp);
       pb = pt.nb > 0u ? hreal(bsdfPdf(bm, sh.woLocal, toLocal(sh.frame, wi))) : hreal(0.0);
     } else {

@@ -47,6 +47,11 @@ expect_error "--sampler" render --scene "$data/scenes/furnace.json" --device cpu
 "$bin" render --scene "$data/scenes/furnace.json" --method mis --spp 4 --width 16 --height 8 --device cpu \
   --sampler independent --out "$tmp/iid.exr" --stats "$tmp/iid.json" -q &&
   grep -q '"sampler": "independent"' "$tmp/iid.json" && ok || fail "--sampler independent in the stats"
+expect_error "--frontier-colour-control" render --scene "$data/scenes/furnace.json" --device cpu \
+  --frontier-colour-control maybe --out "$tmp/s.exr"
+"$bin" render --scene "$data/scenes/furnace.json" --method ht-frontier --spp 4 --width 16 --height 8 --device cpu \
+  --frontier-colour-control off --out "$tmp/cv.exr" --stats "$tmp/cv.json" -q &&
+  grep -q '"frontier_colour_control": "off"' "$tmp/cv.json" && ok || fail "--frontier-colour-control off in the stats"
 "$bin" methods >"$tmp/methods" && [ "$(wc -l <"$tmp/methods")" -ge 5 ] && ok || fail "methods"
 
 for m in uniform cosine env brdf mis; do
