@@ -92,8 +92,8 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
           uint64_t(std::min(in.width, HT_MAX_TILE_SIDE)) * uint64_t(std::min(in.height, HT_MAX_TILE_SIDE));
       gpu += nodes * 20 + tile * HT_QUEUE_BYTES;
     }
-    // ht-frontier: geometry, colour bins; a tile's tables (GpuRenderer's kScratchBytes at most).
-    if (in.method == Method::HtFrontier) gpu += nodes * 21 + (uint64_t(96) << 20);
+    // ht-frontier: geometry, colour bins and chroma; a tile's tables (GpuRenderer's kScratchBytes at most).
+    if (in.method == Method::HtFrontier) gpu += nodes * 24 + (uint64_t(96) << 20);
     gpu += image * 12;  // the readback of the tiles, gathered
     add("GPU buffers", gpu);
   }
