@@ -80,10 +80,10 @@ glm::dvec3 freeDescentChroma(const Environment& env, const HtGeometry& g, const 
 // centre)` gives the bound B and estimate c of BRDF x cos (x visibility) over
 // node i of the tree layout and the BRDF x cos at its centre, and returns
 // false where the integrand is surely 0. Nodes on `productLevel` and below
-// are exact for colour.
+// are exact for colour; their chroma is read only `withChroma`.
 template <class Factor>
 void refine(const Environment& env, const std::vector<glm::vec3>& centres, const FrontierColours& colours,
-            bool colourOrder, int productLevel, int refinements, float coarseRatio, Factor&& factor,
+            bool colourOrder, bool withChroma, int productLevel, int refinements, float coarseRatio, Factor&& factor,
             FrontierTable& table) {
   struct Candidate {
     FrontierNode node;
@@ -104,7 +104,7 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, const
     float bound, c, centre;
     if (!(avg > 0.0f) || !factor(level, i, bound, c, centre, visibility)) return;
     const double energy = double(avg) * healpix::pixelSolidAngle(level);
-    const glm::vec3 chroma = nodeChroma(env, colours, level, node);
+    const glm::vec3 chroma = withChroma ? nodeChroma(env, colours, level, node) : glm::vec3(0.0f);
     const FrontierNode nd{level,  node,   node << (2 * (order - level)), centres[i], energy * double(c), bound, centre,
                           visibility, chroma, chroma, level >= productLevel};
     candidates.push_back({nd, false});
@@ -264,7 +264,7 @@ void buildSharedFrontierTable(const Environment& env, const HtGeometry& g, const
     c = std::max(centre, options.brdfFloor * bound);
     return true;
   };
-  refine(env, g.centers, colours, options.colourOrder, options.productLevel, options.sharedRefinements,
+  refine(env, g.centers, colours, options.colourOrder, true, options.productLevel, options.sharedRefinements,
          options.coarseRatio, factor, table);
   // Every point of the plane descends from a free node alike.
   for (FrontierNode& nd : table.nodes) {
@@ -412,9 +412,12 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
       c = std::max(centre, options.brdfFloor * bound) * vis;
       return true;
     };
-    refine(point.env, point.geometry.centers, colours, options.colourOrder, options.productLevel,
+    // The control variate takes a Lambert point's own table only.
+    const bool colour = options.colourControl && lambert;
+    refine(point.env, point.geometry.centers, colours, options.colourOrder, colour, options.productLevel,
            frontierRefinements(options, n), options.coarseRatio, factor, own_);
-    sumFaceColours(own_);
+    if (colour) sumFaceColours(own_);
+    else own_.faceColour.fill(glm::dvec4(0.0));
     faceColour = own_.faceColour;
   }
   glm::dvec4 colour(0.0);

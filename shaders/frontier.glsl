@@ -724,7 +724,9 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
   } else {
     frontierRefine(n);
     htNodes += 12u + 4u * tableWord(kFrontierSplits);
-    colourSum = frontierOwnColourSum(colourMass);
+    // The control variate takes a Lambert point's own table only.
+    if ((gFs.flags & HT_FRONTIER_COLOUR_CONTROL) != 0u && material.type == HT_MATERIAL_LAMBERT)
+      colourSum = frontierOwnColourSum(colourMass);
   }
   frontierSegments();
   if (!(gFrTotal > 0.0)) return false;
