@@ -351,6 +351,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
   touched_ = 0;
   std::array<glm::dvec4, 12> faceColour;
   if (shared) {
+    colour_ = options.colourControl;
     table_ = &sharedLambertTable(point, options, colours);
     // The point's own caps, each with the faces it can reach. The cap of
     // the surface's own plane is left out: the table has no mass below it
@@ -413,10 +414,10 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
       return true;
     };
     // The control variate takes a Lambert point's own table only.
-    const bool colour = options.colourControl && lambert;
-    refine(point.env, point.geometry.centers, colours, options.colourOrder, colour, options.productLevel,
+    colour_ = options.colourControl && lambert;
+    refine(point.env, point.geometry.centers, colours, options.colourOrder, colour_, options.productLevel,
            frontierRefinements(options, n), options.coarseRatio, factor, own_);
-    if (colour) sumFaceColours(own_);
+    if (colour_) sumFaceColours(own_);
     else own_.faceColour.fill(glm::dvec4(0.0));
     faceColour = own_.faceColour;
   }
@@ -629,10 +630,10 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
   // direction's chroma (a shared table's mass leaves out albedo / pi, a
   // Lambert point's own table holds the albedo's luminance).
   glm::dvec3 colourScale(0.0);
-  if (options.colourControl) {
+  if (frontier.colourControl()) {
     if (frontier.shared()) {
       colourScale = glm::dvec3(sh.material.diffuse) * double(kInvPi);
-    } else if (sh.material.type == MaterialType::Lambert) {
+    } else {
       const float l = luminance(sh.material.diffuse);
       if (l > 0.0f) colourScale = glm::dvec3(sh.material.diffuse) / double(l);
     }

@@ -188,6 +188,9 @@ class Frontier {
   // is free and exactColour, else the node's), whose mean over the node's
   // directions is colourMean(k) (descentChroma where it is free, else its
   // chroma); `colourAverage` is the mass-weighted mean of the means.
+  // All three hold where `colourControl` (a shared table, or a Lambert
+  // point's own table, with FrontierOptions::colourControl).
+  bool colourControl() const { return colour_; }
   glm::dvec3 colourOf(size_t k, uint64_t leaf) const;
   glm::dvec3 colourMean(size_t k) const;
   const glm::dvec3& colourAverage() const { return colourAverage_; }
@@ -212,6 +215,7 @@ class Frontier {
   std::array<double, FrontierTable::kSegments + 1> segCum_{};  // mass of the segments before each
   double total_ = 0.0;
   glm::dvec3 colourAverage_{0.0};
+  bool colour_ = false;
 
   bool touched(const FrontierNode& nd) const { return touched_ >> (nd.node >> (2 * nd.level)) & 1u; }
   double mass(size_t k) const;
