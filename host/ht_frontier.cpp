@@ -165,26 +165,31 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, const
 // in cosines by the angle-addition formulas; the caps' margin covers their
 // rounding.
 void lightCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& g, std::vector<LightCap>& caps) {
-  const float cm = std::cos(kCapMargin), sm = std::sin(kCapMargin);
   caps.clear();
   for (const Occluder& o : occluders(scene, sp)) {
-    const float s0 = o.sinHalfAngle, c0 = std::sqrt(1.0f - s0 * s0);
-    const float sinA = s0 * cm - c0 * sm;  // sin(asin(s0) - margin)
-    const float cosA = c0 * cm + s0 * sm;
-    if (!(sinA > 0.0f)) continue;
-    LightCap c{o.axis, {}, {}};
-    c.cosInside.fill(2.0f);    // never inside
-    c.cosOutside.fill(-2.0f);  // never outside
-    for (size_t l = 0; l <= size_t(g.order); ++l) {
-      const float cR = g.levelCosRadius[l], sR = g.levelSinRadius[l];
-      c.cosInside[l] = sinA * cR - cosA * sR > 0.0f ? cosA * cR + sinA * sR : 2.0f;
-      c.cosOutside[l] = cosA * cR - sinA * sR;
-    }
-    caps.push_back(c);
+    LightCap c;
+    if (frontierCap(o.axis, o.sinHalfAngle, g, c)) caps.push_back(c);
   }
 }
 
 }  // namespace
+
+bool frontierCap(const glm::vec3& axis, float sinHalfAngle, const HtGeometry& g, LightCap& c) {
+  const float cm = std::cos(kCapMargin), sm = std::sin(kCapMargin);
+  const float s0 = sinHalfAngle, c0 = std::sqrt(1.0f - s0 * s0);
+  const float sinA = s0 * cm - c0 * sm;  // sin(asin(s0) - margin)
+  const float cosA = c0 * cm + s0 * sm;
+  if (!(sinA > 0.0f)) return false;
+  c.axis = axis;
+  c.cosInside.fill(2.0f);    // never inside
+  c.cosOutside.fill(-2.0f);  // never outside
+  for (size_t l = 0; l <= size_t(g.order); ++l) {
+    const float cR = g.levelCosRadius[l], sR = g.levelSinRadius[l];
+    c.cosInside[l] = sinA * cR - cosA * sR > 0.0f ? cosA * cR + sinA * sR : 2.0f;
+    c.cosOutside[l] = cosA * cR - sinA * sR;
+  }
+  return true;
+}
 
 int frontierVisibility(const std::vector<LightCap>& caps, const glm::vec3& centre, int level, float minPartial,
                        float& factor) {
@@ -204,6 +209,36 @@ int frontierVisibility(const std::vector<LightCap>& caps, const glm::vec3& centr
   }
   factor = partial ? std::max(visible, minPartial) : 1.0f;
   return partial ? 2 : 1;
+}
+
+int frontierNodeVisibility(const std::vector<LightCap>& caps, const HtGeometry& g, int level, uint64_t node,
+                           float minPartial, float& factor) {
+  const int cls = frontierVisibility(caps, g.centers[MaxAvgTree::levelOffset(level) + node], level, minPartial, factor);
+  if (cls != 2 || level > kFrontierShareLevel || level >= g.order) return cls;
+  // frontierVisibility of each child, under the caps that cover the node in
+  // part (a node outside a cap is taken to have its children outside it).
+  const glm::vec3& centre = g.centers[MaxAvgTree::levelOffset(level) + node];
+  const uint64_t first = MaxAvgTree::levelOffset(level + 1) + 4 * node;
+  const size_t l = size_t(level) + 1;
+  float visible[4] = {1.0f, 1.0f, 1.0f, 1.0f};
+  bool partial[4] = {false, false, false, false};
+  for (const LightCap& c : caps) {
+    if (!(glm::dot(centre, c.axis) > c.cosOutside[size_t(level)])) continue;
+    const float inside = c.cosInside[l], outside = c.cosOutside[l];
+    for (int j = 0; j < 4; ++j) {
+      const float d = glm::dot(g.centers[first + uint64_t(j)], c.axis);
+      if (d >= inside) {
+        visible[j] = 0.0f;
+      } else if (d > outside) {
+        partial[j] = true;
+        visible[j] = std::min(visible[j], 1.0f - std::min((d - outside) / (std::min(inside, 1.0f) - outside), 1.0f));
+      }
+    }
+  }
+  float share = 0.0f;
+  for (int j = 0; j < 4; ++j) share += partial[j] && visible[j] > 0.0f ? std::max(visible[j], minPartial) : visible[j];
+  factor = std::max(0.25f * share, minPartial);
+  return cls;
 }
 
 namespace {
@@ -382,7 +417,8 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
       for (uint32_t k = t.faceStart[f]; k < t.faceStart[f + 1]; ++k) {
         const FrontierNode& nd = t.nodes[k];
         float factor;
-        const int cls = frontierVisibility(faceCaps[f], nd.centre, nd.level, options.minPartialVisibility, factor);
+        const int cls =
+            frontierNodeVisibility(faceCaps[f], g, nd.level, nd.node, options.minPartialVisibility, factor);
         mass_[k] = cls == 1 ? nd.mass : nd.mass * double(factor);
         class_[k] = uint8_t(cls);
         colour += mass_[k] * glm::dvec4(colourMeanOf(nd, cls), 1.0);
@@ -406,7 +442,8 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
       if (!options.visibility) {
         visibility = 1;
       } else if (visibility == 2) {
-        visibility = frontierVisibility(caps_, point.geometry.centers[i], level, options.minPartialVisibility, vis);
+        visibility = frontierNodeVisibility(caps_, point.geometry, level, i - MaxAvgTree::levelOffset(level),
+                                            options.minPartialVisibility, vis);
         if (visibility == 0) return false;
       }
       centre = point.brdfValue(point.geometry.centers[i]);
@@ -473,7 +510,7 @@ void Frontier::children(int level, uint64_t parent, int parentClass, double w[4]
   if (parentClass == 2)
     for (int j = 0; j < 4; ++j) {
       float factor;
-      cls[j] = frontierVisibility(caps_, g.centers[first + uint64_t(j)], level, minPartialVisibility_, factor);
+      cls[j] = frontierNodeVisibility(caps_, g, level, 4 * parent + uint64_t(j), minPartialVisibility_, factor);
       v[j] = double(factor);
     }
   double b[4] = {1.0, 1.0, 1.0, 1.0};

@@ -93,6 +93,11 @@ struct LightCap {
   std::array<float, 32> cosInside, cosOutside;
 };
 
+// The cap of an occluder (HEALPix frame axis, sine of its half-angle)
+// less a margin for rounding (kCapMargin), with its thresholds at every
+// level of g; false where nothing is left of it.
+bool frontierCap(const glm::vec3& axis, float sinHalfAngle, const HtGeometry& g, LightCap& cap);
+
 // The visibility of a node of `level` at `centre` under `caps`: its class
 // (0 inside a cap, 1 outside every cap, 2 partly covered) and its factor in
 // the density: 0, 1, or for a partly covered node its visible share under
@@ -101,6 +106,14 @@ struct LightCap {
 // Caps overlap (a ball on a plane), so the smallest share, not a product.
 int frontierVisibility(const std::vector<LightCap>& caps, const glm::vec3& centre, int level, float minPartial,
                        float& factor);
+// Nodes down to this level are large against the caps: a partly covered
+// one weighs the mean of its four children's factors (0 for a child inside
+// a cap), a finer estimate of the share the caps leave.
+constexpr int kFrontierShareLevel = 3;
+// frontierVisibility of node `node` of `level` (geometry g), with that
+// finer factor where it is partly covered and coarse.
+int frontierNodeVisibility(const std::vector<LightCap>& caps, const HtGeometry& g, int level, uint64_t node,
+                           float minPartial, float& factor);
 
 // The colour bins that order a frontier's CDF.
 constexpr int kFrontierColourBins = 16;

@@ -93,6 +93,9 @@
 // ht-frontier: the level of the environment's average around the mirror
 // direction that sets a flat surface's specular lobe count.
 #define HT_FRONTIER_LOBE_LEVEL 3
+// ht-frontier: partly covered nodes down to this level weigh their children's
+// mean visible share (kFrontierShareLevel).
+#define HT_FRONTIER_SHARE_LEVEL 3
 #define HT_FRONTIER_OWN 0xFFFFFFFFu
 #define HT_FRONTIER_VISIBILITY 1u
 #define HT_FRONTIER_COLOUR_ORDER 2u

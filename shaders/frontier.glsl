@@ -160,6 +160,40 @@ uint frontierClass(vec3 centre, uint level, uint caps, out float factor) {
   return partial ? 2u : 1u;
 }
 
+// frontierNodeVisibility: frontierClass of node `node` of `level`, a
+// coarse partly covered one weighing its children's mean factor under the
+// caps that cover it in part.
+uint frontierNodeClass(uint level, uint node, uint caps, out float factor) {
+  vec3 centre = htCenter(levelOffset(level) + node);
+  uint cls = frontierClass(centre, level, caps, factor);
+  if (cls != 2u || level > uint(HT_FRONTIER_SHARE_LEVEL) || level >= ht.order) return cls;
+  uint first = levelOffset(level + 1u) + 4u * node;
+  float cR0 = gFs.levelCosRadius[level], sR0 = gFs.levelSinRadius[level];
+  float cR = gFs.levelCosRadius[level + 1u], sR = gFs.levelSinRadius[level + 1u];
+  precise float visible[4] = float[4](1.0, 1.0, 1.0, 1.0);
+  bool partial[4] = bool[4](false, false, false, false);
+  for (uint k = 0u; k < gFrCapCount; ++k) {
+    if (((caps >> k) & 1u) == 0u) continue;
+    if (!(dot3(centre, gFrCapAxis[k]) > frontierCosOutside(k, cR0, sR0))) continue;
+    precise float inside = frontierCosInside(k, cR, sR), outside = frontierCosOutside(k, cR, sR);
+    for (uint j = 0u; j < 4u; ++j) {
+      precise float d = dot3(htCenter(first + j), gFrCapAxis[k]);
+      if (d >= inside) {
+        visible[j] = 0.0;
+      } else if (d > outside) {
+        partial[j] = true;
+        visible[j] = min(visible[j], 1.0 - min((d - outside) / (min(inside, 1.0) - outside), 1.0));
+      }
+    }
+  }
+  precise float share = 0.0;
+  for (uint j = 0u; j < 4u; ++j)
+    share += partial[j] && visible[j] > 0.0 ? max(visible[j], gFs.minPartialVisibility) : visible[j];
+  precise float quarter = 0.25 * share;
+  factor = max(quarter, gFs.minPartialVisibility);
+  return cls;
+}
+
 uint frontierColourBin(uint i) {
   if ((gFs.flags & HT_FRONTIER_COLOUR_ORDER) == 0u) return 0u;
   return (gFs.bins.v[i >> 2] >> (8u * (i & 3u))) & 0xFFu;
@@ -268,7 +302,7 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
   if ((gFs.flags & HT_FRONTIER_VISIBILITY) == 0u) {
     cls = 1u;
   } else if (cls == 2u) {
-    cls = frontierClass(centre, level, gFrCaps, vis);
+    cls = frontierNodeClass(level, node, gFrCaps, vis);
     if (cls == 0u) return;
   }
   float value = htBrdfValue(centre);
@@ -454,7 +488,7 @@ hvec3 frontierApplyCaps(uint table, out hreal colourMass) {
     for (uint k = faceStart(f); k < faceStart(f + 1u); ++k) {
       GpuFrontierNode nd = tableNode(k);
       float factor;
-      uint cls = frontierClass(htCenter(levelOffset(nd.level) + nd.node), nd.level, faceCaps, factor);
+      uint cls = frontierNodeClass(nd.level, nd.node, faceCaps, factor);
       hreal mass = tableMass(k);
       hreal pointMass = cls == 1u ? mass : mulF(mass, hreal(factor));
       gFrPointMass.v[(k) * gFrPixels] = pointMass;
@@ -515,7 +549,7 @@ void frontierChildren(uint level, uint parent, uint parentClass, out hreal w[4],
   if (parentClass == 2u)
     for (uint j = 0u; j < 4u; ++j) {
       float factor;
-      cls[j] = frontierClass(htCenter(first + j), level, gFrCaps, factor);
+      cls[j] = frontierNodeClass(level, 4u * parent + j, gFrCaps, factor);
       v[j] = hreal(factor);
     }
   hreal b[4] = hreal[4](1.0, 1.0, 1.0, 1.0);

@@ -187,6 +187,39 @@ TEST(Frontier, DescentAvoidsDarkDirections) {
   }
 }
 
+// A coarse node a cap covers in part weighs the mean of its children's
+// factors, closer to the share of its directions the cap leaves than the
+// factor at its centre alone: over the partly covered nodes of levels 1-3
+// under two caps, the mean error against the share of their level-7
+// descendants' centres outside the cap.
+TEST(Frontier, CoarseNodesWeighTheirChildren) {
+  const std::shared_ptr<const HtGeometry> g = buildHtGeometry(7);
+  for (float sinHalf : {0.3f, 0.7f}) {
+    std::vector<LightCap> caps(1);
+    ASSERT_TRUE(frontierCap(glm::normalize(glm::vec3(0.3f, 0.5f, 0.81f)), sinHalf, *g, caps[0]));
+    const float cosAngle = caps[0].cosInside[7] < 2.0f ? std::cos(std::asin(sinHalf) - kCapMargin) : 2.0f;
+    double centreError = 0.0, nodeError = 0.0;
+    int nodes = 0;
+    for (int level = 1; level <= kFrontierShareLevel; ++level)
+      for (uint64_t node = 0; node < (uint64_t(12) << (2 * level)); ++node) {
+        float atCentre, refined;
+        const glm::vec3& centre = g->centers[MaxAvgTree::levelOffset(level) + node];
+        if (frontierVisibility(caps, centre, level, 0.1f, atCentre) != 2) continue;
+        ASSERT_EQ(frontierNodeVisibility(caps, *g, level, node, 0.1f, refined), 2);
+        const uint64_t leaves = uint64_t(1) << (2 * (7 - level));
+        int outside = 0;
+        for (uint64_t leaf = node * leaves; leaf < (node + 1) * leaves; ++leaf)
+          outside += glm::dot(g->centers[MaxAvgTree::levelOffset(7) + leaf], caps[0].axis) < cosAngle ? 1 : 0;
+        const double share = double(outside) / double(leaves);
+        centreError += std::abs(atCentre - share);
+        nodeError += std::abs(refined - share);
+        ++nodes;
+      }
+    ASSERT_GT(nodes, 10) << sinHalf;
+    EXPECT_LT(nodeError, 0.7 * centreError) << sinHalf << ": " << nodeError / nodes << " against " << centreError / nodes;
+  }
+}
+
 // Colour bins: blue light takes the last bin, red the first, grey and black
 // the middle one; a node's bin is that of its mean radiance.
 TEST(Frontier, ColourBins) {
