@@ -216,7 +216,7 @@ struct GpuRenderer::Impl {
   vk::Buffer brdfBuffer;
   std::shared_ptr<const TsisTable> tsis;
   vk::Buffer tsisBuffer;
-  // ht-frontier: its colour bins (per map) and, per render, its shared
+  // ht-frontier: its colour bins and chroma (per map) and, per render, its shared
   // tables and settings (GpuFrontierScene).
   std::shared_ptr<const FrontierColours> frontierColours;
   vk::Buffer frontierBinsBuffer;
@@ -494,8 +494,11 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
                               colours.chroma.size(), HT_FRONTIER_CHROMA_CHUNKS * chunk));
     frontierChromaBuffers.clear();
     std::fill(std::begin(frontierChroma), std::end(frontierChroma), uint64_t(0));
-    uploadChunked(ctx, colours.chroma.data(), std::max<uint64_t>(colours.chroma.size(), 1), sizeof(glm::vec3), chunk,
-                  frontierChromaBuffers, frontierChroma, "ht-frontier chroma");
+    // A map of one level has no nodes above its pixels: one element, unread, so that the buffer exists.
+    const std::vector<glm::vec3> none(1, glm::vec3(0.0f));
+    const std::vector<glm::vec3>& chroma = colours.chroma.empty() ? none : colours.chroma;
+    uploadChunked(ctx, chroma.data(), chroma.size(), sizeof(glm::vec3), chunk, frontierChromaBuffers, frontierChroma,
+                  "ht-frontier chroma");
     frontierColours = t.frontierColours;
   }
   GpuFrontierScene& f = frontier;

@@ -63,7 +63,7 @@ glm::dvec3 freeDescentChroma(const Environment& env, const HtGeometry& g, const 
   }
   productFactors(w, cls, value, floor, b);
   double p[4];
-  for (int j = 0; j < 4; ++j) p[j] = w[j] * b[j] * 1.0;
+  for (int j = 0; j < 4; ++j) p[j] = w[j] * b[j];
   if (p[0] + p[1] + p[2] + p[3] > 0.0)
     for (int j = 0; j < 4; ++j) w[j] = p[j];
   const double sum = w[0] + w[1] + w[2] + w[3];
@@ -213,11 +213,11 @@ int frontierVisibility(const std::vector<LightCap>& caps, const glm::vec3& centr
 
 int frontierNodeVisibility(const std::vector<LightCap>& caps, const HtGeometry& g, int level, uint64_t node,
                            float minPartial, float& factor) {
-  const int cls = frontierVisibility(caps, g.centers[MaxAvgTree::levelOffset(level) + node], level, minPartial, factor);
+  const glm::vec3& centre = g.centers[MaxAvgTree::levelOffset(level) + node];
+  const int cls = frontierVisibility(caps, centre, level, minPartial, factor);
   if (cls != 2 || level > kFrontierShareLevel || level >= g.order) return cls;
   // frontierVisibility of each child, under the caps that cover the node in
   // part (a node outside a cap is taken to have its children outside it).
-  const glm::vec3& centre = g.centers[MaxAvgTree::levelOffset(level) + node];
   const uint64_t first = MaxAvgTree::levelOffset(level + 1) + 4 * node;
   const size_t l = size_t(level) + 1;
   float visible[4] = {1.0f, 1.0f, 1.0f, 1.0f};

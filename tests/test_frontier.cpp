@@ -178,8 +178,9 @@ TEST(Frontier, DescentAvoidsDarkDirections) {
     };
     const std::string what = s.name + (shared ? " shared" : " own");
     // A shared table has next to no mass below the horizon (0.1 %) to start with.
-    if (!shared)
+    if (!shared) {
       EXPECT_GT(below[1] - below[2], 4.0 * se(below, 1, 2)) << what << ": " << below[1] << " against " << below[2];
+    }
     EXPECT_GT(blocked[0] - blocked[2], 4.0 * se(blocked, 0, 2))
         << what << ": " << blocked[0] << " against " << blocked[2];
     EXPECT_LT(blocked[1] - blocked[2], 4.0 * se(blocked, 1, 2))
@@ -197,7 +198,7 @@ TEST(Frontier, CoarseNodesWeighTheirChildren) {
   for (float sinHalf : {0.3f, 0.7f}) {
     std::vector<LightCap> caps(1);
     ASSERT_TRUE(frontierCap(glm::normalize(glm::vec3(0.3f, 0.5f, 0.81f)), sinHalf, *g, caps[0]));
-    const float cosAngle = caps[0].cosInside[7] < 2.0f ? std::cos(std::asin(sinHalf) - kCapMargin) : 2.0f;
+    const float cosAngle = std::cos(std::asin(sinHalf) - kCapMargin);
     double centreError = 0.0, nodeError = 0.0;
     int nodes = 0;
     for (int level = 1; level <= kFrontierShareLevel; ++level)
@@ -358,12 +359,11 @@ TEST(Frontier, LobeCount) {
 
 // The control variate on colour (at flat and Lambert points) has mean 0:
 // over the directions drawn in a node (their leaves' probabilities from
-// pdf), colourOf averages to
-// colourMean, and colourAverage is the mean of those over the nodes, by
-// their probabilities. With the
-// descent's product down to level 2, own tables have nodes exact for colour
-// above the leaves, and a shared table's means span three levels of its
-// descent's choices; below the map's leaves there is nothing to descend.
+// pdf), colourOf averages to colourMean, and colourAverage is the mean of
+// those over the nodes, by their probabilities. With the descent's product
+// down to level 2, own tables have nodes exact for colour above the leaves,
+// and a shared table's means span three levels of its descent's choices;
+// below the map's leaves there is nothing to descend.
 TEST(Frontier, ColourMeansAreExact) {
   int descended = 0;  // nodes whose mean is not their own chroma
   int taking = 0;
@@ -401,10 +401,11 @@ TEST(Frontier, ColourMeansAreExact) {
         all += pk;
         ++taking;
       }
-      if (all > 0.0)
+      if (all > 0.0) {
         for (int c = 0; c < 3; ++c)
           EXPECT_NEAR(p.frontier.colourAverage()[c], weighted[c] / all, 1e-9 * (1.0 + std::abs(weighted[c] / all)))
               << s.name;
+      }
     }
   }
   EXPECT_GT(descended, 0);
