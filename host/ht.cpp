@@ -25,10 +25,9 @@ constexpr std::array<std::array<uint8_t, 4>, 24> kPermutations = [] {
   return p;
 }();
 
-// Largest angle from a pixel's centre to its corners, with the margin that
+// Largest angle from a pixel's centre c to its corners, with the margin that
 // covers edges bulging past the corner-to-corner span and rounding.
-double cornerRadius(int level, uint64_t pix) {
-  glm::dvec3 c = healpix::pixToVec(level, pix);
+double cornerRadius(int level, uint64_t pix, const glm::dvec3& c) {
   double r = 0.0;
   for (int k = 0; k < 4; ++k) {
     glm::dvec3 q = healpix::pixToVec(level, pix, double(k & 1), double(k >> 1));
@@ -44,21 +43,21 @@ std::unique_ptr<HtGeometry> buildGeometry(int order) {
   g->order = order;
   g->centers.resize(MaxAvgTree::levelOffset(order + 1));
   g->cosSinRadius.resize(g->centers.size());
-  for (int l = 0; l <= order; ++l) {
+  // The radii of a level that sets its levelRadius (at most 12 x 4^8).
+  std::vector<double> radius;
+  for (int l = 0; l <= std::max(order, std::min(kExactRadiusLevels, healpix::kMaxOrder)); ++l) {
     const uint64_t offset = MaxAvgTree::levelOffset(l);
+    const bool exact = l <= kExactRadiusLevels, stored = l <= order;
+    radius.assign(exact ? MaxAvgTree::levelSize(l) : 0, 0.0);
     tbb::parallel_for(uint64_t(0), MaxAvgTree::levelSize(l), [&](uint64_t p) {
-      g->centers[offset + p] = glm::vec3(healpix::pixToVec(l, p));
-      double r = cornerRadius(l, p);
+      const glm::dvec3 c = healpix::pixToVec(l, p);
+      const double r = cornerRadius(l, p, c);
+      if (exact) radius[p] = r;
+      if (!stored) return;
+      g->centers[offset + p] = glm::vec3(c);
       g->cosSinRadius[offset + p] = glm::vec2(float(std::cos(r)), float(std::sin(r)));
     });
-  }
-  for (int l = 0; l <= std::min(kExactRadiusLevels, healpix::kMaxOrder); ++l) {
-    std::vector<double> perFace(12, 0.0);
-    tbb::parallel_for(0, 12, [&](int f) {
-      uint64_t n = uint64_t(1) << (2 * l);
-      for (uint64_t p = f * n; p < (f + 1) * n; ++p) perFace[f] = std::max(perFace[f], cornerRadius(l, p));
-    });
-    g->levelRadius[l] = float(*std::max_element(perFace.begin(), perFace.end()));
+    if (exact) g->levelRadius[l] = float(*std::max_element(radius.begin(), radius.end()));
   }
   // Pixels halve at each finer level and grow more regular: scale the last
   // exact radius, with 5% to spare (checked against every level in tests).
