@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <unordered_map>
 
@@ -191,8 +192,11 @@ bool frontierCap(const glm::vec3& axis, float sinHalfAngle, const HtGeometry& g,
   return true;
 }
 
-int frontierVisibility(const std::vector<LightCap>& caps, const glm::vec3& centre, int level, float minPartial,
-                       float& factor) {
+namespace {
+
+// Caps: a range of const LightCap& (the point's caps, or those of one face).
+template <class Caps>
+int visibilityUnder(const Caps& caps, const glm::vec3& centre, int level, float minPartial, float& factor) {
   bool partial = false;
   float visible = 1.0f;
   for (const LightCap& c : caps) {
@@ -211,10 +215,11 @@ int frontierVisibility(const std::vector<LightCap>& caps, const glm::vec3& centr
   return partial ? 2 : 1;
 }
 
-int frontierNodeVisibility(const std::vector<LightCap>& caps, const HtGeometry& g, int level, uint64_t node,
-                           float minPartial, float& factor) {
-  const glm::vec3& centre = g.centers[MaxAvgTree::levelOffset(level) + node];
-  const int cls = frontierVisibility(caps, centre, level, minPartial, factor);
+// `centre`: the node's, g.centers[levelOffset(level) + node].
+template <class Caps>
+int nodeVisibilityUnder(const Caps& caps, const HtGeometry& g, int level, uint64_t node, const glm::vec3& centre,
+                        float minPartial, float& factor) {
+  const int cls = visibilityUnder(caps, centre, level, minPartial, factor);
   if (cls != 2 || level > kFrontierShareLevel || level >= g.order) return cls;
   // frontierVisibility of each child, under the caps that cover the node in
   // part (a node outside a cap is taken to have its children outside it).
@@ -239,6 +244,19 @@ int frontierNodeVisibility(const std::vector<LightCap>& caps, const HtGeometry& 
   for (int j = 0; j < 4; ++j) share += partial[j] && visible[j] > 0.0f ? std::max(visible[j], minPartial) : visible[j];
   factor = std::max(0.25f * share, minPartial);
   return cls;
+}
+
+}  // namespace
+
+int frontierVisibility(const std::vector<LightCap>& caps, const glm::vec3& centre, int level, float minPartial,
+                       float& factor) {
+  return visibilityUnder(caps, centre, level, minPartial, factor);
+}
+
+int frontierNodeVisibility(const std::vector<LightCap>& caps, const HtGeometry& g, int level, uint64_t node,
+                           float minPartial, float& factor) {
+  return nodeVisibilityUnder(caps, g, level, node, g.centers[MaxAvgTree::levelOffset(level) + node], minPartial,
+                             factor);
 }
 
 namespace {
@@ -391,9 +409,9 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
     // The point's own caps, each with the faces it can reach. The cap of
     // the surface's own plane is left out: the table has no mass below it
     // but for nodes the horizon cuts, where cos+ is small.
-    thread_local std::array<std::vector<LightCap>, 12> faceCaps;
+    thread_local std::array<std::vector<std::reference_wrapper<const LightCap>>, 12> faceCaps;
     const HtGeometry& g = point.geometry;
-    for (std::vector<LightCap>& caps : faceCaps) caps.clear();
+    for (auto& caps : faceCaps) caps.clear();
     caps_.erase(std::remove_if(caps_.begin(), caps_.end(),
                                [&](const LightCap& c) { return glm::dot(c.axis, point.n) < -0.9999f; }),
                 caps_.end());
@@ -418,7 +436,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
         const FrontierNode& nd = t.nodes[k];
         float factor;
         const int cls =
-            frontierNodeVisibility(faceCaps[f], g, nd.level, nd.node, options.minPartialVisibility, factor);
+            nodeVisibilityUnder(faceCaps[f], g, nd.level, nd.node, nd.centre, options.minPartialVisibility, factor);
         mass_[k] = cls == 1 ? nd.mass : nd.mass * double(factor);
         class_[k] = uint8_t(cls);
         colour += mass_[k] * glm::dvec4(colourMeanOf(nd, cls), 1.0);
