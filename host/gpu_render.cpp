@@ -220,8 +220,9 @@ struct GpuRenderer::Impl {
   // tables and settings (GpuFrontierScene).
   std::shared_ptr<const FrontierColours> frontierColours;
   vk::Buffer frontierBinsBuffer;
-  std::vector<vk::Buffer> frontierChromaBuffers;
+  std::vector<vk::Buffer> frontierChromaBuffers, frontierCentroidBuffers;
   uint64_t frontierChroma[HT_FRONTIER_CHROMA_CHUNKS] = {};
+  uint64_t frontierCentroid[HT_FRONTIER_CHROMA_CHUNKS] = {};
   std::vector<vk::Buffer> frontierBuffers;
   GpuFrontierScene frontier{};
   bool recordHtSamples = false;
@@ -365,6 +366,7 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.frontierColours = nullptr;
   m.frontierBinsBuffer = {};
   m.frontierChromaBuffers.clear();
+  m.frontierCentroidBuffers.clear();
   m.frontierBuffers.clear();
   m.hostScene = &scene;
   m.hasScene = true;
@@ -492,19 +494,24 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
       throw Error(fmt::format("method ht-frontier on the GPU handles maps up to Nside 2048 (this one has {} nodes "
                               "above its pixels, at most {}); use --device cpu",
                               colours.chroma.size(), HT_FRONTIER_CHROMA_CHUNKS * chunk));
-    frontierChromaBuffers.clear();
-    std::fill(std::begin(frontierChroma), std::end(frontierChroma), uint64_t(0));
     // A map of one level has no nodes above its pixels: one element, unread, so that the buffer exists.
     const std::vector<glm::vec3> none(1, glm::vec3(0.0f));
-    const std::vector<glm::vec3>& chroma = colours.chroma.empty() ? none : colours.chroma;
-    uploadChunked(ctx, chroma.data(), chroma.size(), sizeof(glm::vec3), chunk, frontierChromaBuffers, frontierChroma,
-                  "ht-frontier chroma");
+    auto upload = [&](const std::vector<glm::vec3>& v, std::vector<vk::Buffer>& buffers, uint64_t* addresses,
+                      const char* what) {
+      buffers.clear();
+      std::fill(addresses, addresses + HT_FRONTIER_CHROMA_CHUNKS, uint64_t(0));
+      const std::vector<glm::vec3>& data = v.empty() ? none : v;
+      uploadChunked(ctx, data.data(), data.size(), sizeof(glm::vec3), chunk, buffers, addresses, what);
+    };
+    upload(colours.chroma, frontierChromaBuffers, frontierChroma, "ht-frontier chroma");
+    upload(colours.centroid, frontierCentroidBuffers, frontierCentroid, "ht-frontier centroids");
     frontierColours = t.frontierColours;
   }
   GpuFrontierScene& f = frontier;
   f = GpuFrontierScene{};
   f.bins = frontierBinsBuffer.address();
   std::copy(std::begin(frontierChroma), std::end(frontierChroma), f.chroma);
+  std::copy(std::begin(frontierCentroid), std::end(frontierCentroid), f.centroids);
 
   const std::vector<glm::vec3> normals =
       options.sharedRefinements >= 0 ? sharedFrontierNormals(hs) : std::vector<glm::vec3>{};

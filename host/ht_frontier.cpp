@@ -10,6 +10,7 @@
 #include <glm/geometric.hpp>
 #include <glm/vec4.hpp>
 
+#include "error.h"
 #include "healpix.h"
 #include "tree.h"
 
@@ -379,18 +380,43 @@ std::vector<uint8_t> colourBins(const Environment& env) {
   return bins;
 }
 
+// FrontierColours::centroid: luminance x centre summed in double, level by
+// level from the leaves.
+std::vector<glm::vec3> centroidsAboveLeaves(const Environment& env, const HtGeometry& g) {
+  const int order = env.order;
+  std::vector<glm::dvec3> sum(size_t(MaxAvgTree::levelOffset(order)));
+  const uint64_t leaves = MaxAvgTree::levelOffset(order);
+  auto leaf = [&](uint64_t i) { return double(env.tree.avgv[leaves + i]) * glm::dvec3(g.centers[leaves + i]); };
+  for (int level = order - 1; level >= 0; --level)
+    for (uint64_t i = 0; i < MaxAvgTree::levelSize(level); ++i) {
+      glm::dvec3 s(0.0);
+      for (uint64_t j = 0; j < 4; ++j)
+        s += level + 1 == order ? leaf(4 * i + j) : sum[MaxAvgTree::levelOffset(level + 1) + 4 * i + j];
+      sum[MaxAvgTree::levelOffset(level) + i] = s;
+    }
+  std::vector<glm::vec3> centroid(sum.size());
+  for (size_t i = 0; i < sum.size(); ++i) {
+    const double l = glm::length(sum[i]);
+    centroid[i] = l > 0.0 ? glm::vec3(sum[i] / l) : g.centers[i];
+  }
+  return centroid;
+}
+
 }  // namespace
 
-FrontierColours frontierColours(const Environment& env) {
+FrontierColours frontierColours(const Environment& env, const HtGeometry& g) {
+  if (g.order != env.order) throw Error("internal: ht-frontier colours need the geometry of the map's order");
   FrontierColours c;
   c.chroma = chromaAboveLeaves(env);
   c.bins = colourBins(env);
+  c.centroid = centroidsAboveLeaves(env, g);
   return c;
 }
 
 void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const FrontierOptions& options, int n,
                      const FrontierColours& colours) {
   point_ = &point;
+  colours_ = &colours;
   order_ = point.env.order;
   productLevel_ = options.productLevel;
   brdfFloor_ = options.brdfFloor;
@@ -464,7 +490,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
                                             options.minPartialVisibility, vis);
         if (visibility == 0) return false;
       }
-      centre = point.brdfValue(point.geometry.centers[i]);
+      centre = point.brdfValue(frontierFactorDirection(colours, point.geometry, i));
       c = std::max(centre, options.brdfFloor * bound) * vis;
       return true;
     };
@@ -535,9 +561,9 @@ void Frontier::children(int level, uint64_t parent, int parentClass, double w[4]
   if (product) {
     double value[4];
     for (int j = 0; j < 4; ++j) {
-      const glm::vec3& centre = g.centers[first + uint64_t(j)];
-      value[j] = w[j] > 0.0 && cls[j] != 0 ? cosFactor_ ? double(std::max(glm::dot(centre, point_->n), 0.0f))
-                                                         : double(point_->brdfValue(centre))
+      const glm::vec3& d = shared() ? g.centers[first + uint64_t(j)] : frontierFactorDirection(*colours_, g, first + uint64_t(j));
+      value[j] = w[j] > 0.0 && cls[j] != 0 ? cosFactor_ ? double(std::max(glm::dot(d, point_->n), 0.0f))
+                                                         : double(point_->brdfValue(d))
                                            : 0.0;
     }
     // A child the integrand may reach keeps a weight above 0: its BRDF

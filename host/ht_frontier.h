@@ -16,8 +16,8 @@
 //    stratified points below spread over light of each colour in proportion;
 //    place n_t systematic points (i + u) / n_t on the mass CDF in that order.
 // 3. Inside a node the point's remaining coordinate descends to a leaf,
-//    each child drawn by its environment average x BRDF x cos at its centre
-//    x its visibility class (down to a level, by the environment alone
+//    each child drawn by its environment average x BRDF x cos at its light's
+//    centroid (at its centre in a shared table) x its visibility class (down to a level, by the environment alone
 //    below), and two fresh numbers place it inside the leaf.
 // 4. Where the frontier is coarse for the BRDF (its mass sits in nodes with
 //    B much above c), n_b of the n directions are BRDF samples instead, and
@@ -123,12 +123,26 @@ constexpr int kFrontierColourBins = 16;
 //   one where it is black);
 // - `chroma` (the levels above the leaves only), its radiance over its
 //   luminance, both summed over its leaves: the mean of frontierLeafChroma
-//   over a descent by the average tree (0 where it is black).
+//   over a descent by the average tree (0 where it is black);
+// - `centroid` (the levels above the leaves only), the direction of its
+//   light: its leaves' centres weighted by their luminance, summed and
+//   normalised (its centre where it is black). A point's own table reads a
+//   node's BRDF factor there, not at its centre: where a small bright
+//   source sits off the centre of a large node, the BRDF at the source is
+//   what its mass needs. (A flat surface's shared table reads cos+ at the
+//   centres.)
 struct FrontierColours {
   std::vector<uint8_t> bins;
   std::vector<glm::vec3> chroma;
+  std::vector<glm::vec3> centroid;
 };
-FrontierColours frontierColours(const Environment& env);
+// `g`: the geometry of the map's order.
+FrontierColours frontierColours(const Environment& env, const HtGeometry& g);
+// The direction node i (tree layout) reads its BRDF factor in: its
+// centroid above the leaves, a leaf's centre.
+inline const glm::vec3& frontierFactorDirection(const FrontierColours& colours, const HtGeometry& g, uint64_t i) {
+  return i < colours.centroid.size() ? colours.centroid[i] : g.centers[i];
+}
 // A leaf's radiance over its luminance (0 where it is black).
 glm::dvec3 frontierLeafChroma(const glm::vec3& radiance);
 
@@ -210,6 +224,7 @@ class Frontier {
 
  private:
   const HtPoint* point_ = nullptr;
+  const FrontierColours* colours_ = nullptr;
   int order_ = 0;
   int productLevel_ = 0;
   float brdfFloor_ = 0.0f, minPartialVisibility_ = 1.0f;

@@ -115,7 +115,7 @@ MethodTables prepareTables(const Scene& scene, Method method, const MethodOption
         healpixNodeCenters(WisPoint::orderFor(env, options.wisOrder)));
   if (method == Method::Tsis) t.tsis = std::make_shared<const TsisTable>(buildTsisTable(env));
   if (method == Method::HtFrontier)
-    t.frontierColours = std::make_shared<const FrontierColours>(frontierColours(env));
+    t.frontierColours = std::make_shared<const FrontierColours>(frontierColours(env, *t.htGeometry));
   return t;
 }
 

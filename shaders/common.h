@@ -100,8 +100,9 @@
 #define HT_FRONTIER_VISIBILITY 1u
 #define HT_FRONTIER_COLOUR_ORDER 2u
 #define HT_FRONTIER_COLOUR_CONTROL 4u
-// ht-frontier: chunks of the chroma of the average tree's nodes above the
-// leaves (HT_HT_VEC3_CHUNK_SHIFT elements each): maps up to Nside 2048.
+// ht-frontier: chunks of the chroma and of the centroids of the average
+// tree's nodes above the leaves (HT_HT_VEC3_CHUNK_SHIFT elements each): maps
+// up to Nside 2048.
 #define HT_FRONTIER_CHROMA_CHUNKS 4
 
 #define HT_MATERIAL_LAMBERT 0
@@ -354,7 +355,8 @@ struct GpuFrontierScene {
   HT_CHUNK_REF(FrontierReals) sharedCum;
   HT_CHUNK_REF(FrontierColourNodes) sharedColour;
   HT_CHUNK_REF(FrontierReals) sharedFaceColour;  // per table, FrontierTable::faceColour (12 x 4)
-  HT_CHUNK_REF(Vec3Chunk) chroma[HT_FRONTIER_CHROMA_CHUNKS];  // FrontierColours::chroma
+  HT_CHUNK_REF(Vec3Chunk) chroma[HT_FRONTIER_CHROMA_CHUNKS];    // FrontierColours::chroma
+  HT_CHUNK_REF(Vec3Chunk) centroids[HT_FRONTIER_CHROMA_CHUNKS]; // FrontierColours::centroid
   vec3 sharedNormal[HT_FRONTIER_MAX_SHARED];  // HEALPix frame, as a point on the plane sees it
   float levelCosRadius[32];
   float levelSinRadius[32];
@@ -445,10 +447,10 @@ static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 128);
 static_assert(sizeof(GpuFrontierNode) == 24 && sizeof(GpuFrontierHeader) == 4 * (HT_FRONTIER_SEGMENTS + 20) &&
               sizeof(GpuFrontierPoint) == 32 && offsetof(GpuFrontierPoint, total) == 16 &&
               sizeof(GpuFrontierColour) == 24);
-static_assert(offsetof(GpuFrontierScene, sharedNormal) == 96 &&
-              offsetof(GpuFrontierScene, levelCosRadius) == 96 + 12 * HT_FRONTIER_MAX_SHARED &&
-              offsetof(GpuFrontierScene, sharedCount) == 96 + 12 * HT_FRONTIER_MAX_SHARED + 256 &&
-              sizeof(GpuFrontierScene) == 96 + 12 * HT_FRONTIER_MAX_SHARED + 256 + 4 * 28);
+static_assert(offsetof(GpuFrontierScene, sharedNormal) == 128 &&
+              offsetof(GpuFrontierScene, levelCosRadius) == 128 + 12 * HT_FRONTIER_MAX_SHARED &&
+              offsetof(GpuFrontierScene, sharedCount) == 128 + 12 * HT_FRONTIER_MAX_SHARED + 256 &&
+              sizeof(GpuFrontierScene) == 128 + 12 * HT_FRONTIER_MAX_SHARED + 256 + 4 * 28);
 static_assert(offsetof(GpuScene, htBrdfTables) - offsetof(GpuScene, camPosition) == 112 &&
               offsetof(GpuScene, frontier) - offsetof(GpuScene, camPosition) == 120);
 static_assert(offsetof(GpuScene, tsisSat) - offsetof(GpuScene, camPosition) == 96 &&

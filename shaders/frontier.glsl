@@ -219,6 +219,13 @@ vec3 frontierNodeChroma(uint level, uint node) {
   return gFs.chroma[i >> HT_HT_VEC3_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC3_CHUNK_SHIFT) - 1u)];
 }
 
+// frontierFactorDirection: node i's centroid above the leaves, a leaf's
+// centre.
+vec3 frontierFactorDirection(uint i) {
+  if (i >= levelOffset(ht.order)) return htCenter(i);
+  return gFs.centroids[i >> HT_HT_VEC3_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC3_CHUNK_SHIFT) - 1u)];
+}
+
 // FrontierNode::chroma and descentChroma of the table's node k (an own
 // table's node's descent is exact for colour only below the product
 // levels, where its mean is its chroma).
@@ -296,7 +303,6 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
   if (!(avg > 0.0)) return;
   float bound = htBrdfBound(i);
   if (!(bound > 0.0)) return;
-  vec3 centre = htCenter(i);
   float vis = 1.0;
   uint cls = parentClass;
   if ((gFs.flags & HT_FRONTIER_VISIBILITY) == 0u) {
@@ -305,7 +311,7 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
     cls = frontierNodeClass(level, node, gFrCaps, vis);
     if (cls == 0u) return;
   }
-  float value = htBrdfValue(centre);
+  float value = htBrdfValue(frontierFactorDirection(i));
   precise float c = max(value, gFs.brdfFloor * bound) * vis;
   precise hreal energy = hreal(avg) * htPixelSolidAngle(level);
   precise hreal spread = max(hreal(0.0), hreal(bound) - hreal(c));
@@ -556,9 +562,9 @@ void frontierChildren(uint level, uint parent, uint parentClass, out hreal w[4],
   if (product) {
     hreal top = 0.0;
     for (uint j = 0u; j < 4u; ++j) {
-      vec3 centre = htCenter(first + j);
+      vec3 d = gFrShared ? htCenter(first + j) : frontierFactorDirection(first + j);
       if (w[j] > 0.0 && cls[j] != 0u)
-        b[j] = gFrLambert ? hreal(max(dot3(centre, ht.n), 0.0)) : hreal(htBrdfValue(centre));
+        b[j] = gFrLambert ? hreal(max(dot3(d, ht.n), 0.0)) : hreal(htBrdfValue(d));
       else
         b[j] = 0.0;
       top = max(top, b[j]);

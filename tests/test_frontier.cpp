@@ -232,7 +232,7 @@ TEST(Frontier, ColourBins) {
   px[48] = glm::vec3(0.0f, 0.0f, 1.0f);  // face 3: one blue pixel of 16
   px[49] = glm::vec3(1.0f, 0.0f, 0.0f);  // and one red
   const Environment env = environmentFromPixels(kOrder, std::move(px));
-  const std::vector<uint8_t> bins = frontierColours(env).bins;
+  const std::vector<uint8_t> bins = frontierColours(env, *buildHtGeometry(kOrder)).bins;
   const int mid = kFrontierColourBins / 2;
   EXPECT_EQ(bins[0], kFrontierColourBins - 1);
   EXPECT_EQ(bins[1], 0);
@@ -241,6 +241,30 @@ TEST(Frontier, ColourBins) {
   EXPECT_EQ(bins[5], mid);  // black
   EXPECT_EQ(bins[MaxAvgTree::levelOffset(kOrder) + 48], kFrontierColourBins - 1);
   EXPECT_EQ(bins[MaxAvgTree::levelOffset(kOrder) + 49], 0);
+}
+
+// A node's centroid is the direction of its light: that of its one lit
+// pixel, the normalised sum of two equally bright ones, its centre where it
+// is black; the leaves read their factor at their centres.
+TEST(Frontier, CentroidsFollowTheLight) {
+  constexpr int kOrder = 2;
+  const std::shared_ptr<const HtGeometry> geometry = buildHtGeometry(kOrder);
+  const HtGeometry& g = *geometry;
+  std::vector<glm::vec3> px(healpix::pixelCount(kOrder), glm::vec3(0.0f));
+  px[5] = glm::vec3(3.0f);                   // face 0: one pixel of 16
+  px[16] = px[31] = glm::vec3(1.0f);         // face 1: its first and last pixels
+  const Environment env = environmentFromPixels(kOrder, std::move(px));
+  const FrontierColours c = frontierColours(env, g);
+  const uint64_t leaves = MaxAvgTree::levelOffset(kOrder);
+  ASSERT_EQ(c.centroid.size(), leaves);
+  auto near = [](const glm::vec3& a, const glm::vec3& b) { return glm::length(a - b) < 1e-6f; };
+  EXPECT_TRUE(near(c.centroid[0], g.centers[leaves + 5]));                                       // face 0
+  EXPECT_TRUE(near(c.centroid[MaxAvgTree::levelOffset(1) + 1], g.centers[leaves + 5]));           // its parent
+  EXPECT_TRUE(near(c.centroid[1], glm::normalize(g.centers[leaves + 16] + g.centers[leaves + 31])));  // face 1
+  EXPECT_TRUE(near(c.centroid[2], g.centers[2]));                                                 // black face 2
+  EXPECT_FALSE(near(c.centroid[0], g.centers[0]));
+  EXPECT_EQ(&frontierFactorDirection(c, g, leaves + 5), &g.centers[leaves + 5]);
+  EXPECT_EQ(&frontierFactorDirection(c, g, 0), &c.centroid[0]);
 }
 
 // The CDF runs through the table's nodes by colour bin, then face, then
