@@ -71,7 +71,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
   if (in.method == Method::HtFrontier) {
     tables += add("ht-frontier shared tables (per thread, at most)",
                   uint64_t(std::max(in.threads, 1)) * kFrontierSharedTables * kFrontierSharedTableBytes);
-    tables += add("ht-frontier colour bins and chroma (and their sums while built)", nodes * 16);
+    tables += add("ht-frontier colour bins, chroma and centroids (and their sums while built)", nodes * 25);
   }
   uint64_t sat = 0;
   if (in.method == Method::Tsis) {
@@ -92,8 +92,9 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
           uint64_t(std::min(in.width, HT_MAX_TILE_SIDE)) * uint64_t(std::min(in.height, HT_MAX_TILE_SIDE));
       gpu += nodes * 20 + tile * HT_QUEUE_BYTES;
     }
-    // ht-frontier: geometry, colour bins and chroma; a tile's tables (GpuRenderer's kScratchBytes at most).
-    if (in.method == Method::HtFrontier) gpu += nodes * 24 + (uint64_t(96) << 20);
+    // ht-frontier: geometry, colour bins, chroma and centroids; a tile's tables (GpuRenderer's kScratchBytes at
+    // most).
+    if (in.method == Method::HtFrontier) gpu += nodes * 27 + (uint64_t(96) << 20);
     gpu += image * 12;  // the readback of the tiles, gathered
     add("GPU buffers", gpu);
   }
