@@ -6,6 +6,7 @@
 #include <functional>
 #include <memory>
 #include <unordered_map>
+#include <utility>
 
 #include <glm/geometric.hpp>
 #include <glm/vec4.hpp>
@@ -665,14 +666,28 @@ Material specularLobeOf(const Material& m) {
   return lobe;
 }
 
-int frontierLobeCount(const Material& m, float cosO, float mirrorRadiance, double tableMass, int n) {
+namespace {
+
+// frontierLobeCount's S and D.
+std::pair<double, double> lobeAndDiffuse(const Material& m, float cosO, float mirrorRadiance, double tableMass) {
   const float f0 = luminance(m.specular);
   const float t = 1.0f - std::clamp(cosO, 0.0f, 1.0f);
   const float reflectance = m.type == MaterialType::Ggx ? f0 + (1.0f - f0) * (t * t * t * t * t) : f0;
-  const double lobe = double(reflectance) * double(mirrorRadiance);
-  const double diffuse = double(luminance(m.diffuse)) * double(kInvPi) * tableMass;
-  if (!(lobe > 0.0)) return 0;
-  return std::clamp(int(std::lround(double(n) * lobe / (lobe + diffuse))), 0, std::max(n - 1, 0));
+  return {double(reflectance) * double(mirrorRadiance), double(luminance(m.diffuse)) * double(kInvPi) * tableMass};
+}
+
+}  // namespace
+
+int frontierLobeCount(const Material& m, float cosO, float mirrorRadiance, double tableMass, int n) {
+  const auto [lobe, diffuse] = lobeAndDiffuse(m, cosO, mirrorRadiance, tableMass);
+  if (!(lobe > 0.0) || n < 2) return 0;
+  return std::clamp(int(std::lround(double(n) * lobe / (lobe + diffuse))), 1, n - 1);
+}
+
+double frontierLobeMixture(const Material& m, float cosO, float mirrorRadiance, double tableMass) {
+  const auto [lobe, diffuse] = lobeAndDiffuse(m, cosO, mirrorRadiance, tableMass);
+  if (!(lobe > 0.0)) return 0.0;
+  return std::clamp(lobe / (lobe + diffuse), kFrontierMixtureMin, 1.0 - kFrontierMixtureMin);
 }
 
 int frontierBrdfCount(double coarseShare, const FrontierOptions& options, int n) {
@@ -700,12 +715,29 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
   const bool apart = frontier.specularApart();
   const Material bm = apart ? specularLobeOf(sh.material) : sh.material;
   const int lobeLevel = std::min(kFrontierLobeLevel, env.order);
-  const int nb = apart ? frontierLobeCount(sh.material, point.woLocal.z,
-                                           env.tree.avgv[MaxAvgTree::levelOffset(lobeLevel) +
-                                                         healpix::vecToPix(lobeLevel, glm::dvec3(point.mirror))],
-                                           frontier.totalMass(), n)
-                       : frontierBrdfCount(frontier, options, n);
-  const int nt = n - nb;
+  const float mirrorRadiance =
+      apart ? env.tree.avgv[MaxAvgTree::levelOffset(lobeLevel) + healpix::vecToPix(lobeLevel, glm::dvec3(point.mirror))]
+            : 0.0f;
+  int nb = apart ? frontierLobeCount(sh.material, point.woLocal.z, mirrorRadiance, frontier.totalMass(), n)
+                 : frontierBrdfCount(frontier, options, n);
+  int nt = n - nb;
+  // The techniques' weights in the balance heuristic: their counts, or for
+  // one direction with the lobe apart the mixture's probabilities, the
+  // offset u then choosing the technique (frontierLobeMixture).
+  double wt = nt, wb = nb;
+  double u = rng.next();
+  const double q =
+      apart && n == 1 ? frontierLobeMixture(sh.material, point.woLocal.z, mirrorRadiance, frontier.totalMass()) : 0.0;
+  if (q > 0.0) {
+    wt = 1.0 - q;
+    wb = q;
+    if (u < q) {
+      nt = 0;
+      nb = 1;
+    } else {
+      u = (u - q) / (1.0 - q);
+    }
+  }
   // The control variate's kappa M / n: where the table's shape is cos+, a
   // table direction's f / p is about the albedo's colour x M x the
   // direction's chroma (a shared table's mass leaves out albedo / pi, a
@@ -718,7 +750,8 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
       const float l = luminance(sh.material.diffuse);
       if (l > 0.0f) colourScale = glm::dvec3(sh.material.diffuse) / double(l);
     }
-    colourScale = colourScale * frontier.totalMass() / double(n);
+    // With the mixture a table direction comes with probability wt.
+    colourScale = colourScale * frontier.totalMass() / (double(n) * (q > 0.0 ? wt : 1.0));
   }
   const bool colourControl = colourScale != glm::dvec3(0.0);
   const glm::dvec3& colourAverage = frontier.colourAverage();
@@ -726,7 +759,6 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
   // Systematic points over the table's CDF, one offset per pixel; inside
   // its leaf each point takes the sampler's point of sample i, dimension 0.
   // The BRDF directions are samples 0..nb-1 of dimension 1.
-  const double u = rng.next();
   for (int i = 0; i < nt; ++i) {
     glm::dvec3 hp;
     double pt;
@@ -735,9 +767,9 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
     const uint64_t leaf = frontier.sample((double(i) + u) / nt, sampler.get2D(), hp, pt, &k);
     if (colourControl) sum += colourScale * (colourAverage - frontier.colourOf(k, leaf));
     const glm::vec3 wi = env.fromHealpixFrame(hp);
-    const double pb = nb > 0 ? double(bsdfPdf(bm, sh.woLocal, sh.frame.toLocal(wi))) : 0.0;
+    const double pb = wb > 0.0 ? double(bsdfPdf(bm, sh.woLocal, sh.frame.toLocal(wi))) : 0.0;
     const glm::vec3 f = sh.reflected(wi, env.radiance[leaf]);
-    if (f != glm::vec3(0.0f)) sum += glm::dvec3(f) / (nt * pt + nb * pb);
+    if (f != glm::vec3(0.0f)) sum += glm::dvec3(f) / (wt * pt + wb * pb);
   }
   for (int i = 0; i < nb; ++i) {
     sampler.startSample(uint32_t(i));
@@ -748,7 +780,7 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
     const glm::vec3 wi = sh.frame.toWorld(local);
     const uint64_t leaf = env.pixelOf(wi);
     const glm::vec3 f = sh.reflected(wi, env.radiance[leaf]);
-    if (f != glm::vec3(0.0f)) sum += glm::dvec3(f) / (nt * frontier.pdf(leaf) + nb * pb);
+    if (f != glm::vec3(0.0f)) sum += glm::dvec3(f) / (wt * frontier.pdf(leaf) + wb * pb);
   }
   counters.directions += uint64_t(n);
   // The control variate can take a dark channel below 0, rarely (docs/ht.md).

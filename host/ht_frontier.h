@@ -267,12 +267,22 @@ Material specularLobeOf(const Material& m);
 // frontierLobeCount reads.
 constexpr int kFrontierLobeLevel = 3;
 // The n_s of n directions that sample the specular lobe where the table is
-// the diffuse lobe's: n S / (S + D), rounded, at most n - 1. S: the lobe's
-// reflectance at cos(theta_o) (Schlick for GGX, the specular colour for
-// Phong, in luminance) x `mirrorRadiance`, the environment's average around
-// the mirror direction; D: the diffuse albedo / pi x the table's mass, the
-// irradiance it estimates.
+// the diffuse lobe's: n S / (S + D), rounded, at least 1 where S > 0 and
+// n >= 2, at most n - 1. S: the lobe's reflectance at cos(theta_o)
+// (Schlick for GGX, the specular colour for Phong, in luminance) x
+// `mirrorRadiance`, the environment's average around the mirror direction;
+// D: the diffuse albedo / pi x the table's mass, the irradiance it
+// estimates. A lobe without directions of its own would leave its peak to
+// the table's cos+, which can be tiny there: rare directions with a huge
+// f / p, a tail that no affordable count of estimates averages out.
 int frontierLobeCount(const Material& m, float cosO, float mirrorRadiance, double tableMass, int n);
+// For n = 1, where one direction cannot be split between the table and the
+// lobe: the probability q that it samples the lobe, S / (S + D) kept within
+// [1/8, 7/8] (0 where S = 0). The direction comes from the mixture, the
+// table with probability 1 - q, and is weighed by the balance heuristic
+// over the probabilities (one-sample MIS).
+constexpr double kFrontierMixtureMin = 0.125;  // exact in float and double
+double frontierLobeMixture(const Material& m, float cosO, float mirrorRadiance, double tableMass);
 
 // The splits a per-point frontier makes for n samples.
 int frontierRefinements(const FrontierOptions& options, int n);

@@ -93,6 +93,10 @@
 // ht-frontier: the level of the environment's average around the mirror
 // direction that sets a flat surface's specular lobe count.
 #define HT_FRONTIER_LOBE_LEVEL 3
+// ht-frontier: one direction with the lobe apart samples the lobe with a
+// probability kept within [this, 1 - this] (frontierLobeMixture); exact in
+// float and double.
+#define HT_FRONTIER_MIXTURE_MIN 0.125
 // ht-frontier: partly covered nodes down to this level weigh their children's
 // mean visible share (kFrontierShareLevel).
 #define HT_FRONTIER_SHARE_LEVEL 3

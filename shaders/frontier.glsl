@@ -713,7 +713,8 @@ hvec3 frontierOwnColourSum(out hreal colourMass) {
 
 // frontierLobeCount: the n_s of n directions that sample the specular lobe
 // of a flat surface, whose table is its diffuse lobe's.
-uint frontierLobeCount(GpuMaterial m, uint n) {
+// Its S and D (lobeAndDiffuse).
+void frontierLobeAndDiffuse(GpuMaterial m, out hreal lobeOut, out hreal diffuseOut) {
   precise float f0 = luminance(m.specular);
   precise float t = 1.0 - clamp(ht.woLocal.z, 0.0, 1.0);
   precise float reflectance = m.type == HT_MATERIAL_GGX ? f0 + (1.0 - f0) * (t * t * t * t * t) : f0;
@@ -721,11 +722,26 @@ uint frontierLobeCount(GpuMaterial m, uint n) {
   float radiance = treeAvg(levelOffset(level) + vecToPix(level, hvec3(ht.mirror)));
   precise hreal lobe = hreal(reflectance) * hreal(radiance);
   precise hreal diffuse = hreal(luminance(m.diffuse)) * hreal(kInvPi) * gFrTotal;
-  if (!(lobe > 0.0)) return 0u;
+  lobeOut = lobe;
+  diffuseOut = diffuse;
+}
+uint frontierLobeCount(GpuMaterial m, uint n) {
+  hreal lobe, diffuse;
+  frontierLobeAndDiffuse(m, lobe, diffuse);
+  if (!(lobe > 0.0) || n < 2u) return 0u;
   precise hreal x = hreal(n) * lobe / (lobe + diffuse);
   hreal whole = floor(x);
   uint ns = uint(whole) + (subF(x, whole) >= 0.5 ? 1u : 0u);
-  return min(ns, n > 0u ? n - 1u : 0u);
+  return clamp(ns, 1u, n - 1u);
+}
+// frontierLobeMixture: for one direction, the probability that it samples
+// the lobe.
+hreal frontierLobeMixture(GpuMaterial m) {
+  hreal lobe, diffuse;
+  frontierLobeAndDiffuse(m, lobe, diffuse);
+  if (!(lobe > 0.0)) return 0.0;
+  precise hreal share = lobe / (lobe + diffuse);
+  return clamp(share, hreal(HT_FRONTIER_MIXTURE_MIN), hreal(1.0 - HT_FRONTIER_MIXTURE_MIN));
 }
 
 // The table is the diffuse lobe's shared one and the BRDF technique samples
@@ -814,11 +830,26 @@ GpuFrontierPoint frontierResume(vec3 position, vec3 normal, vec3 wo, GpuMaterial
 uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inout Sampler smp, inout accvec3 sum,
                      inout uint directions) {
   hreal u = hrealFromBits(pt.u);
-  hreal nt = hreal(pt.nt), nb = hreal(pt.nb);
+  // The techniques' weights: their counts, or for one direction with the
+  // lobe apart the mixture's probabilities, u choosing the technique.
+  hreal wt = hreal(pt.nt), wb = hreal(pt.nb);
+  uint nt = pt.nt;
   GpuMaterial bm = sh.material;
+  hreal q = 0.0;
   if (frontierSpecularApart(sh.material, pt.table)) {
     bm.diffuse = vec3(0.0);
     bm.specularProbability = luminance(bm.specular) > 0.0 ? 1.0 : 0.0;  // specularLobeProbability
+    if (pt.nt + pt.nb == 1u) q = frontierLobeMixture(sh.material);
+  }
+  if (q > 0.0) {
+    wt = subF(hreal(1.0), q);
+    wb = q;
+    if (u < q) {
+      nt = 0u;
+    } else {
+      precise hreal rest = (u - q) / (hreal(1.0) - q);
+      u = rest;
+    }
   }
   // The control variate's kappa M / n (estimateHtFrontier).
   hvec3 colourScale = hvec3(0.0);
@@ -830,7 +861,8 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
       float l = luminance(d);
       if (l > 0.0) colourScale = hvec3(divF(hreal(d.x), hreal(l)), divF(hreal(d.y), hreal(l)), divF(hreal(d.z), hreal(l)));
     }
-    hreal n = hreal(pt.nt + pt.nb);
+    // With the mixture a table direction comes with probability wt.
+    hreal n = q > 0.0 ? mulF(hreal(pt.nt + pt.nb), wt) : hreal(pt.nt + pt.nb);
     colourScale = hvec3(divF(mulF(colourScale.x, gFrTotal), n), divF(mulF(colourScale.y, gFrTotal), n),
                         divF(mulF(colourScale.z, gFrTotal), n));
   }
@@ -841,9 +873,9 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
     vec3 wi;
     uint leaf;
     hreal ptable, pb;  // the two techniques' densities
-    if (j < pt.nt) {
+    if (j < nt) {
       samplerStart(smp, j);
-      precise hreal x = (hreal(j) + u) / nt;
+      precise hreal x = (hreal(j) + u) / hreal(nt);
       vec2 jitter = samplerNext2D(smp);
       hvec3 hp;
       uint k;
@@ -854,9 +886,9 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
         sum = frontierAdd3(sum, hvec3(mulF(colourScale.x, d.x), mulF(colourScale.y, d.y), mulF(colourScale.z, d.z)));
       }
       wi = fromHealpixFrame(hp);
-      pb = pt.nb > 0u ? hreal(bsdfPdf(bm, sh.woLocal, toLocal(sh.frame, wi))) : hreal(0.0);
+      pb = wb > 0.0 ? hreal(bsdfPdf(bm, sh.woLocal, toLocal(sh.frame, wi))) : hreal(0.0);
     } else {
-      samplerStart(smp, j - pt.nt);
+      samplerStart(smp, j - nt);
       smp.dimension = 1u;
       vec3 local = sampleBsdf(bm, sh.woLocal, samplerNext2D(smp));
       float pdf = bsdfPdf(bm, sh.woLocal, local);
@@ -868,7 +900,7 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
     }
     vec3 f = reflected(sh, wi, envRadiance(leaf));
     if (f == vec3(0.0)) continue;
-    precise hreal denom = nt * ptable + nb * pb;
+    precise hreal denom = wt * ptable + wb * pb;
     precise accvec3 total = sum + accvec3(f) / denom;
     sum = total;
   }
