@@ -62,7 +62,7 @@ glm::dvec3 freeDescentChroma(const Environment& env, const HtGeometry& g, const 
   const int cls[4] = {1, 1, 1, 1};
   for (int j = 0; j < 4; ++j) {
     w[j] = env.tree.avgv[first + uint64_t(j)];
-    value[j] = double(std::max(glm::dot(g.centers[first + uint64_t(j)], n), 0.0f));
+    value[j] = double(std::max(glm::dot(frontierFactorDirection(colours, g, first + uint64_t(j)), n), 0.0f));
   }
   productFactors(w, cls, value, floor, b);
   double p[4];
@@ -312,10 +312,9 @@ void buildSharedFrontierTable(const Environment& env, const HtGeometry& g, const
   // Albedo and 1/pi scale every node alike: the shape is cos+ alone.
   auto factor = [&](int, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
     visibility = 1;
-    const glm::vec3& axis = g.centers[i];
-    bound = cosClosest(axis, n, g.cosSinRadius[i].x, g.cosSinRadius[i].y);
+    bound = cosClosest(g.centers[i], n, g.cosSinRadius[i].x, g.cosSinRadius[i].y);
     if (!(bound > 0.0f)) return false;
-    centre = std::max(glm::dot(axis, n), 0.0f);
+    centre = std::max(glm::dot(frontierFactorDirection(colours, g, i), n), 0.0f);
     c = std::max(centre, options.brdfFloor * bound);
     return true;
   };
@@ -562,7 +561,7 @@ void Frontier::children(int level, uint64_t parent, int parentClass, double w[4]
   if (product) {
     double value[4];
     for (int j = 0; j < 4; ++j) {
-      const glm::vec3& d = shared() ? g.centers[first + uint64_t(j)] : frontierFactorDirection(*colours_, g, first + uint64_t(j));
+      const glm::vec3& d = frontierFactorDirection(*colours_, g, first + uint64_t(j));
       value[j] = w[j] > 0.0 && cls[j] != 0 ? cosFactor_ ? double(std::max(glm::dot(d, point_->n), 0.0f))
                                                          : double(point_->brdfValue(d))
                                            : 0.0;

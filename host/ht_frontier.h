@@ -17,7 +17,7 @@
 //    place n_t systematic points (i + u) / n_t on the mass CDF in that order.
 // 3. Inside a node the point's remaining coordinate descends to a leaf,
 //    each child drawn by its environment average x BRDF x cos at its light's
-//    centroid (at its centre in a shared table) x its visibility class (down to a level, by the environment alone
+//    centroid x its visibility class (down to a level, by the environment alone
 //    below), and two fresh numbers place it inside the leaf.
 // 4. Where the frontier is coarse for the BRDF (its mass sits in nodes with
 //    B much above c), n_b of the n directions are BRDF samples instead, and
@@ -126,11 +126,10 @@ constexpr int kFrontierColourBins = 16;
 //   over a descent by the average tree (0 where it is black);
 // - `centroid` (the levels above the leaves only), the direction of its
 //   light: its leaves' centres weighted by their luminance, summed and
-//   normalised (its centre where it is black). A point's own table reads a
-//   node's BRDF factor there, not at its centre: where a small bright
-//   source sits off the centre of a large node, the BRDF at the source is
-//   what its mass needs. (A flat surface's shared table reads cos+ at the
-//   centres.)
+//   normalised (its centre where it is black). A table reads a node's BRDF
+//   factor there, not at its centre: where a small bright source sits off
+//   the centre of a large node, the BRDF at the source is what its mass
+//   needs.
 struct FrontierColours {
   std::vector<uint8_t> bins;
   std::vector<glm::vec3> chroma;

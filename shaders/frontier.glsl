@@ -562,7 +562,7 @@ void frontierChildren(uint level, uint parent, uint parentClass, out hreal w[4],
   if (product) {
     hreal top = 0.0;
     for (uint j = 0u; j < 4u; ++j) {
-      vec3 d = gFrShared ? htCenter(first + j) : frontierFactorDirection(first + j);
+      vec3 d = frontierFactorDirection(first + j);
       if (w[j] > 0.0 && cls[j] != 0u)
         b[j] = gFrLambert ? hreal(max(dot3(d, ht.n), 0.0)) : hreal(htBrdfValue(d));
       else
