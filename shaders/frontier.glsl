@@ -711,9 +711,7 @@ hvec3 frontierOwnColourSum(out hreal colourMass) {
 
 // ---------------------------------------------------------------- estimate
 
-// frontierLobeCount: the n_s of n directions that sample the specular lobe
-// of a flat surface, whose table is its diffuse lobe's.
-// Its S and D (lobeAndDiffuse).
+// frontierLobeCount's S and D (lobeAndDiffuse).
 void frontierLobeAndDiffuse(GpuMaterial m, out hreal lobeOut, out hreal diffuseOut) {
   precise float f0 = luminance(m.specular);
   precise float t = 1.0 - clamp(ht.woLocal.z, 0.0, 1.0);
@@ -725,6 +723,8 @@ void frontierLobeAndDiffuse(GpuMaterial m, out hreal lobeOut, out hreal diffuseO
   lobeOut = lobe;
   diffuseOut = diffuse;
 }
+// frontierLobeCount: the n_s of n directions that sample the specular lobe
+// of a flat surface, whose table is its diffuse lobe's.
 uint frontierLobeCount(GpuMaterial m, uint n) {
   hreal lobe, diffuse;
   frontierLobeAndDiffuse(m, lobe, diffuse);

@@ -393,8 +393,8 @@ TEST(Frontier, LobeCount) {
 
 // One direction on a flat glossy surface at a grazing view: before the
 // mixture the lobe had no direction of its own and its peak fell to the
-// table's cos+ near the horizon, a tail so heavy that 256000 estimates
-// averaged 0.58 % below the integral (z = -21). The mixture bounds f / p
+// table's cos+ near the horizon, a tail so heavy that these 256000
+// estimates averaged 0.58 % below the integral. The mixture bounds f / p
 // there; the mean of 256000 estimates matches the brute force (z-test over
 // the three channels, Sidak-corrected).
 TEST(Frontier, OneDirectionOnAGrazingGlossyPlane) {
