@@ -576,6 +576,7 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
   f.capacity = 12 + 3 * refinements;
   f.sharedCapacity = sharedCapacity;
   f.brdfFloor = options.brdfFloor;
+  f.lobeFloor = options.lobeFloor;
   f.minPartialVisibility = options.minPartialVisibility;
   f.coarseRatio = options.coarseRatio;
   f.maxBrdfShare = options.maxBrdfShare;

@@ -155,13 +155,22 @@ float HtPoint::brdfValue(const glm::vec3& dirHp) const {
 // value at the smallest angle the cone allows (DESIGN.md section 6), in
 // cosines so that no inverse trigonometry is needed.
 float HtPoint::brdfBound(uint64_t i) const {
+  float diffuse;
+  return brdfBound(i, diffuse);
+}
+
+float HtPoint::brdfBound(uint64_t i, float& diffuse) const {
   const glm::vec3& axis = geometry.centers[i];
   const float cr = geometry.cosSinRadius[i].x, sr = geometry.cosSinRadius[i].y;
-  if (table)
-    return table->bound(thetaO, {glm::dot(axis, tableX), glm::dot(axis, tableY), glm::dot(axis, n)}, cr, sr);
+  if (table) {
+    diffuse = table->bound(thetaO, {glm::dot(axis, tableX), glm::dot(axis, tableY), glm::dot(axis, n)}, cr, sr);
+    return diffuse;
+  }
+  diffuse = 0.0f;
   float cosMax = cosClosest(axis, n, cr, sr);
   if (cosMax <= 0.0f || woLocal.z <= 0.0f) return 0.0f;
   float b = luminance(material.diffuse) * kInvPi * cosMax;
+  diffuse = b;
   if (material.type == MaterialType::Phong) {
     float c = cosClosest(axis, mirror, cr, sr);
     if (c > 0.0f)

@@ -182,6 +182,9 @@ class HtPoint {
 
   // Bound over node i (index into the flat per-level layout).
   float brdfBound(uint64_t i) const;
+  // The same, with the diffuse lobe's share of it in `diffuse` (all of it
+  // with tabulated bounds).
+  float brdfBound(uint64_t i, float& diffuse) const;
   float brdfValue(const glm::vec3& dirHp) const;
   // 0: the cone is fully blocked, 1: fully free, 2: partly covered.
   int visibilityClass(const glm::vec3& axis, int level) const;

@@ -329,6 +329,13 @@ void buildSharedFrontierTable(const Environment& env, const HtGeometry& g, const
   sumFaceColours(table);
 }
 
+float frontierLobeFloor(const Material& m, const HtGeometry& g, const FrontierOptions& options) {
+  const float r = g.levelRadius[size_t(std::clamp(options.productLevel, 0, g.order))];
+  const bool resolved = (m.type == MaterialType::Ggx && m.alpha >= r) ||
+                        (m.type == MaterialType::Phong && 2.0f / m.exponent >= 4.0f * r * r);
+  return resolved ? options.lobeFloor : options.brdfFloor;
+}
+
 int frontierRefinements(const FrontierOptions& options, int n) {
   return options.refinements >= 0 ? options.refinements : std::min(16 + std::max(n, 0), 256);
 }
@@ -479,8 +486,10 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
     }
   } else {
     table_ = &own_;
+    const float lobeFloor = frontierLobeFloor(point.material, point.geometry, options);
     auto factor = [&](int level, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
-      bound = point.brdfBound(i);
+      float diffuse;
+      bound = point.brdfBound(i, diffuse);
       if (!(bound > 0.0f)) return false;
       float vis = 1.0f;
       if (!options.visibility) {
@@ -491,7 +500,8 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
         if (visibility == 0) return false;
       }
       centre = point.brdfValue(frontierFactorDirection(colours, point.geometry, i));
-      c = std::max(centre, options.brdfFloor * bound) * vis;
+      const float floor = options.brdfFloor * diffuse + lobeFloor * (bound - diffuse);
+      c = std::max(centre, floor) * vis;
       return true;
     };
     // The control variate takes a Lambert point's own table only.

@@ -71,6 +71,10 @@ struct FrontierOptions {
   int refinements = -1;
   int sharedRefinements = kFrontierSharedRefinements;  // a flat surface's shared table (< 0: not shared)
   float brdfFloor = 0.25f;      // node BRDF factor >= this x its bound
+  // ... or, in a point's own table, >= brdfFloor x its diffuse lobe's bound +
+  // this x its specular lobe's, where the descent resolves the specular lobe
+  // (frontierLobeFloor).
+  float lobeFloor = 0.05f;
   // A node the caps cover in part weighs its estimated visible share
   // (frontierVisibility), never less than this: an underestimate gives its
   // visible part too little mass (large f / p).
@@ -282,6 +286,16 @@ int frontierLobeCount(const Material& m, float cosO, float mirrorRadiance, doubl
 // over the probabilities (one-sample MIS).
 constexpr double kFrontierMixtureMin = 0.125;  // exact in float and double
 double frontierLobeMixture(const Material& m, float cosO, float mirrorRadiance, double tableMass);
+
+// The floor of a point's specular lobe in its own table: lobeFloor where
+// the lobe is at least as wide as the descent's finest product nodes (GGX
+// alpha, or Phong's sqrt(2 / exponent) / 2, >= their radius R), brdfFloor
+// where it is narrower. A node's factor is read at its light's centroid;
+// the floor guards against a lobe that peaks between the points read, which
+// only a lobe narrower than the nodes the descent weighs can do. Against
+// the BRDF's bound, a floor of 0.25 gives a wide glossy lobe's flanks far
+// more mass than their light (docs/ht.md).
+float frontierLobeFloor(const Material& m, const HtGeometry& g, const FrontierOptions& options);
 
 // The splits a per-point frontier makes for n samples.
 int frontierRefinements(const FrontierOptions& options, int n);

@@ -369,6 +369,7 @@ struct GpuFrontierScene {
   uint capacity;
   uint sharedCapacity;
   float brdfFloor;
+  float lobeFloor;
   float minPartialVisibility;
   float coarseRatio;
   float maxBrdfShare;

@@ -254,6 +254,7 @@ FrontierNodes gFrCand;
 FrontierReals gFrCandMass, gFrHeapKey;
 FrontierUints gFrHeapIndex;
 uint gFrCandCount, gFrHeapSize;
+float gFrLobeFloor;  // frontierLobeFloor of the point's material
 
 bool frontierHeapLess(hreal ka, uint ia, hreal kb, uint ib) { return ka < kb || (ka == kb && ia < ib); }
 
@@ -301,7 +302,8 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
   uint i = levelOffset(level) + node;
   float avg = treeAvg(i);
   if (!(avg > 0.0)) return;
-  float bound = htBrdfBound(i);
+  float diffuse;
+  float bound = htBrdfBoundParts(i, diffuse);
   if (!(bound > 0.0)) return;
   float vis = 1.0;
   uint cls = parentClass;
@@ -312,7 +314,8 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
     if (cls == 0u) return;
   }
   float value = htBrdfValue(frontierFactorDirection(i));
-  precise float c = max(value, gFs.brdfFloor * bound) * vis;
+  precise float floor = gFs.brdfFloor * diffuse + gFrLobeFloor * (bound - diffuse);
+  precise float c = max(value, floor) * vis;
   precise hreal energy = hreal(avg) * htPixelSolidAngle(level);
   precise hreal spread = max(hreal(0.0), hreal(bound) - hreal(c));
   precise hreal priority = level < ht.order ? energy * spread * spread / hreal(c) : hreal(0.0);
@@ -373,9 +376,20 @@ void frontierUseOwn() {
   gFrCum = frontierReals(gFs.offCum);
 }
 
+// frontierLobeFloor.
+float frontierLobeFloor() {
+  float r = scene.htLevelRadius[min(gFs.productLevel, ht.order)];
+  precise float phongWidth2 = 2.0 / ht.material.exponent;
+  precise float nodeWidth2 = 4.0 * r * r;
+  bool resolved = (ht.material.type == HT_MATERIAL_GGX && ht.material.alpha >= r) ||
+                  (ht.material.type == HT_MATERIAL_PHONG && phongWidth2 >= nodeWidth2);
+  return resolved ? gFs.lobeFloor : gFs.brdfFloor;
+}
+
 // Frontier::build's own table: refine from the twelve faces.
 void frontierRefine(uint n) {
   frontierUseOwn();
+  gFrLobeFloor = frontierLobeFloor();
   gFrCand = frontierNodes(gFs.offCandidates);
   gFrCandMass = frontierReals(gFs.offCandidateMass);
   gFrHeapKey = frontierReals(gFs.offHeapKey);

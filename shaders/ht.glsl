@@ -127,16 +127,21 @@ precise float htBrdfValue(vec3 dirHp) {
   return luminance(evalBsdf(ht.material, ht.woLocal, toLocal(ht.frame, dirHp)));
 }
 
-// HtPoint::brdfBound: each lobe at the smallest angle the node's cone allows.
-precise float htBrdfBound(uint i) {
+// HtPoint::brdfBound: each lobe at the smallest angle the node's cone
+// allows; `diffuse` receives the diffuse lobe's share.
+precise float htBrdfBoundParts(uint i, out float diffuse) {
   vec3 axis = htCenter(i);
   vec2 csr = htCosSinRadius(i);
   float cr = csr.x, sr = csr.y;
-  if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u)
-    return htTableBound(ht.table, vec3(dot3(axis, ht.table.x), dot3(axis, ht.table.y), dot3(axis, ht.n)), cr, sr);
+  if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u) {
+    diffuse = htTableBound(ht.table, vec3(dot3(axis, ht.table.x), dot3(axis, ht.table.y), dot3(axis, ht.n)), cr, sr);
+    return diffuse;
+  }
+  diffuse = 0.0;
   float cosMax = htCosClosest(axis, ht.n, cr, sr);
   if (cosMax <= 0.0 || ht.woLocal.z <= 0.0) return 0.0;
   precise float b = luminance(ht.material.diffuse) * kInvPi * cosMax;
+  diffuse = b;
   if (ht.material.type == HT_MATERIAL_PHONG) {
     float c = htCosClosest(axis, ht.mirror, cr, sr);
     if (c > 0.0) {
@@ -157,6 +162,11 @@ precise float htBrdfBound(uint i) {
     b = b + lobe;
   }
   return b;
+}
+
+precise float htBrdfBound(uint i) {
+  float diffuse;
+  return htBrdfBoundParts(i, diffuse);
 }
 
 // 0: the cone is fully blocked, 1: fully free, 2: partly covered.

@@ -267,6 +267,62 @@ TEST(Frontier, CentroidsFollowTheLight) {
   EXPECT_EQ(&frontierFactorDirection(c, g, 0), &c.centroid[0]);
 }
 
+// A specular lobe the descent's product levels resolve takes the small
+// floor; a narrower one, Lambert and the diffuse lobe keep brdfFloor.
+TEST(Frontier, LobeFloorFollowsTheLobeWidth) {
+  const std::shared_ptr<const HtGeometry> g = buildHtGeometry(kEnvOrder);
+  const FrontierOptions o;
+  const float r = g->levelRadius[size_t(std::min(o.productLevel, kEnvOrder))];
+  ASSERT_LT(o.lobeFloor, o.brdfFloor);
+  EXPECT_EQ(frontierLobeFloor(ggx(1.001f * r, glm::vec3(0.9f)), *g, o), o.lobeFloor);
+  EXPECT_EQ(frontierLobeFloor(ggx(0.999f * r, glm::vec3(0.9f)), *g, o), o.brdfFloor);
+  EXPECT_EQ(frontierLobeFloor(ggx(0.3f, glm::vec3(0.04f), glm::vec3(0.5f)), *g, o), o.lobeFloor);
+  const float e = 1.0f / (2.0f * r * r);  // sqrt(2 / e) / 2 = r
+  EXPECT_EQ(frontierLobeFloor(phong(0.99f * e, glm::vec3(0.3f)), *g, o), o.lobeFloor);
+  EXPECT_EQ(frontierLobeFloor(phong(1.01f * e, glm::vec3(0.3f)), *g, o), o.brdfFloor);
+  EXPECT_EQ(frontierLobeFloor(lambert(0.8f), *g, o), o.brdfFloor);
+  // Coarser product levels resolve fewer lobes.
+  FrontierOptions coarse;
+  coarse.productLevel = 3;
+  EXPECT_EQ(frontierLobeFloor(ggx(0.08f, glm::vec3(0.9f)), *g, coarse), coarse.brdfFloor);
+}
+
+// On a glossy conductor (GGX alpha 0.08, which the descent resolves), the
+// nodes a floor of 0.25 x the bound would lift hold a share of the table's
+// mass close to their share of the integrand. With that floor they took
+// about twice their share, starving the nodes of the lobe's centre.
+TEST(Frontier, GlossyLobeFlanksKeepTheirShare) {
+  for (const glm::vec3& wo : {glm::vec3(0.2f, 0.5f, -0.8f), glm::vec3(-0.5f, 0.3f, 0.6f), glm::vec3(0.6f, 0.2f, 0.3f)}) {
+    const ShadingSetup s = makeSetup("ggx0.08-sunrise", sunrise(), ggx(0.08f, glm::vec3(1.0f, 0.78f, 0.34f)), wo);
+    // Mass share / integrand share of those nodes, under options o.
+    auto excess = [&](const FrontierOptions& o) {
+      PreparedPoint p;
+      prepare(s, o, 16, p);
+      const FrontierTable& t = p.frontier.table();
+      const Environment& env = s.scene.environment;
+      double mass = 0.0, part = 0.0, all = 0.0;
+      for (const FrontierNode& nd : t.nodes) {
+        const bool lifted = nd.brdfCentre < 0.25f * nd.brdfBound;
+        if (lifted) mass += nd.mass;
+        const uint64_t leaves = uint64_t(1) << (2 * (env.order - nd.level));
+        for (uint64_t l = nd.firstLeaf; l < nd.firstLeaf + leaves; ++l) {
+          const glm::vec3 wi = env.direction(env.order, l, 0.5f, 0.5f);
+          const double f = luminance(visibleReflectance(s.scene, p.sp, wi) * env.radiance[l]);
+          all += f;
+          if (lifted) part += f;
+        }
+      }
+      return part > 0.0 ? (mass / p.frontier.totalMass()) / (part / all) : 1.0;
+    };
+    FrontierOptions before;
+    before.lobeFloor = before.brdfFloor;
+    const double now = excess(FrontierOptions{}), then = excess(before);
+    EXPECT_LT(now, 1.3) << "wo " << wo.x << " " << wo.y << " " << wo.z << ", with the old floor " << then;
+    EXPECT_GT(then, 1.3) << "the measure no longer tells the floors apart";
+    std::printf("[ lobe floor ] wo (%.1f, %.1f, %.1f): lifted nodes' mass over their share %.2f (floor 0.25: %.2f)\n", wo.x, wo.y, wo.z, now, then);
+  }
+}
+
 // The CDF runs through the table's nodes by colour bin, then face, then
 // nested index, each node once.
 TEST(Frontier, CdfOrderGroupsColours) {
