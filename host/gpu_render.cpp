@@ -43,6 +43,7 @@ static_assert(FrontierTable::kSegments == HT_FRONTIER_SEGMENTS && kFrontierColou
 static_assert(int(Method::HtFrontier) == HT_METHOD_HT_FRONTIER);
 static_assert(kFrontierLobeLevel == HT_FRONTIER_LOBE_LEVEL);
 static_assert(kFrontierMixtureMin == HT_FRONTIER_MIXTURE_MIN);
+static_assert(kFrontierLobeRadii == HT_FRONTIER_LOBE_RADII);
 static_assert(kFrontierShareLevel == HT_FRONTIER_SHARE_LEVEL);
 static_assert(TsisPoint::kDefaultRegions == HT_TSIS_REGIONS && TsisTable::kMaxLevel == HT_TSIS_MAX_LEVEL);
 static_assert(WisPoint::kExactLevels == HT_WIS_EXACT_LEVELS && WisPoint::kMaxOrder == HT_WIS_MAX_ORDER &&

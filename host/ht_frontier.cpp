@@ -329,11 +329,29 @@ void buildSharedFrontierTable(const Environment& env, const HtGeometry& g, const
   sumFaceColours(table);
 }
 
-float frontierLobeFloor(const Material& m, const HtGeometry& g, const FrontierOptions& options) {
-  const float r = g.levelRadius[size_t(std::clamp(options.productLevel, 0, g.order))];
-  const bool resolved = (m.type == MaterialType::Ggx && m.alpha >= r) ||
-                        (m.type == MaterialType::Phong && 2.0f / m.exponent >= 4.0f * r * r);
-  return resolved ? options.lobeFloor : options.brdfFloor;
+namespace {
+
+// Whether nodes of radius r resolve the material's specular lobe: its
+// half-width (GGX alpha, Phong sqrt(2 / exponent) / 2) is at least
+// kFrontierLobeRadii x r. A Lambert has no lobe to resolve.
+bool lobeResolved(const Material& m, float r) {
+  const float kr = kFrontierLobeRadii * r;
+  if (m.type == MaterialType::Ggx) return m.alpha >= kr;
+  if (m.type == MaterialType::Phong) return 2.0f / m.exponent >= 4.0f * kr * kr;
+  return true;
+}
+
+}  // namespace
+
+int frontierProductLevel(const Material& m, const HtGeometry& g, const FrontierOptions& options) {
+  int level = std::clamp(options.productLevel, 0, g.order);
+  while (level < g.order && !lobeResolved(m, g.levelRadius[size_t(level)])) ++level;
+  return level;
+}
+
+float frontierLobeFloor(const Material& m, const HtGeometry& g, const FrontierOptions& options, int productLevel) {
+  return m.type != MaterialType::Lambert && lobeResolved(m, g.levelRadius[size_t(productLevel)]) ? options.lobeFloor
+                                                                                                 : options.brdfFloor;
 }
 
 int frontierRefinements(const FrontierOptions& options, int n) {
@@ -425,11 +443,12 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
   point_ = &point;
   colours_ = &colours;
   order_ = point.env.order;
-  productLevel_ = options.productLevel;
   brdfFloor_ = options.brdfFloor;
   minPartialVisibility_ = options.minPartialVisibility;
   const bool lambert = point.material.type == MaterialType::Lambert;
   const bool shared = sp.flat && !point.table && options.sharedRefinements >= 0 && point.woLocal.z > 0.0f;
+  // A shared table is the diffuse lobe's: its descent keeps the option's level.
+  productLevel_ = shared ? options.productLevel : frontierProductLevel(point.material, point.geometry, options);
   specularApart_ = shared && !lambert;
   cosFactor_ = (lambert && !point.table) || specularApart_;
   caps_.clear();
@@ -486,7 +505,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
     }
   } else {
     table_ = &own_;
-    const float lobeFloor = frontierLobeFloor(point.material, point.geometry, options);
+    const float lobeFloor = frontierLobeFloor(point.material, point.geometry, options, productLevel_);
     auto factor = [&](int level, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
       float diffuse;
       bound = point.brdfBound(i, diffuse);
@@ -506,7 +525,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
     };
     // The control variate takes a Lambert point's own table only.
     colour_ = options.colourControl && lambert;
-    refine(point.env, point.geometry.centers, colours, options.colourOrder, colour_, options.productLevel,
+    refine(point.env, point.geometry.centers, colours, options.colourOrder, colour_, productLevel_,
            frontierRefinements(options, n), options.coarseRatio, factor, own_);
     if (colour_) sumFaceColours(own_);
     else own_.faceColour.fill(glm::dvec4(0.0));

@@ -83,7 +83,8 @@ struct FrontierOptions {
   float maxBrdfShare = 0.5f;    // at most this share of the n directions from the BRDF
   bool visibility = true;       // caps in the density
   // Below a table node, children are drawn by environment x BRDF x
-  // visibility down to this level, by the environment x visibility below it.
+  // visibility down to this level, by the environment x visibility below it
+  // (in a point's own table, deeper for a narrow lobe: frontierProductLevel).
   int productLevel = 5;
   bool colourOrder = true;      // the CDF's nodes by colour (else along the nested index)
   bool colourControl = true;    // the control variate on colour
@@ -287,15 +288,23 @@ int frontierLobeCount(const Material& m, float cosO, float mirrorRadiance, doubl
 constexpr double kFrontierMixtureMin = 0.125;  // exact in float and double
 double frontierLobeMixture(const Material& m, float cosO, float mirrorRadiance, double tableMass);
 
+// A level's nodes resolve a specular lobe whose half-width (GGX alpha,
+// Phong sqrt(2 / exponent) / 2) is at least this many times their radius:
+// a node's diameter.
+constexpr float kFrontierLobeRadii = 2.0f;
+// The last level whose children a point's own table weighs by the BRDF:
+// options.productLevel, or deeper, down to the map's order, until its
+// nodes resolve the specular lobe. A narrow lobe (chrome, GGX alpha 0.02)
+// left to the environment below level 5 gets directions where it is dark.
+int frontierProductLevel(const Material& m, const HtGeometry& g, const FrontierOptions& options);
 // The floor of a point's specular lobe in its own table: lobeFloor where
-// the lobe is at least as wide as the descent's finest product nodes (GGX
-// alpha, or Phong's sqrt(2 / exponent) / 2, >= their radius R), brdfFloor
-// where it is narrower. A node's factor is read at its light's centroid;
-// the floor guards against a lobe that peaks between the points read, which
-// only a lobe narrower than the nodes the descent weighs can do. Against
-// the BRDF's bound, a floor of 0.25 gives a wide glossy lobe's flanks far
-// more mass than their light (docs/ht.md).
-float frontierLobeFloor(const Material& m, const HtGeometry& g, const FrontierOptions& options);
+// the nodes of `productLevel` (frontierProductLevel) resolve the lobe,
+// brdfFloor where it is narrower, and for a Lambert. A node's factor is
+// read at its light's centroid; the floor guards against a lobe that peaks
+// between the points read, which only a lobe narrower than the nodes the
+// descent weighs can do. Against the BRDF's bound, a floor of 0.25 gives a
+// wide glossy lobe's flanks far more mass than their light (docs/ht.md).
+float frontierLobeFloor(const Material& m, const HtGeometry& g, const FrontierOptions& options, int productLevel);
 
 // The splits a per-point frontier makes for n samples.
 int frontierRefinements(const FrontierOptions& options, int n);

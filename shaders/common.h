@@ -97,6 +97,8 @@
 // probability kept within [this, 1 - this] (frontierLobeMixture); exact in
 // float and double.
 #define HT_FRONTIER_MIXTURE_MIN 0.125
+// kFrontierLobeRadii: node radii per half-width of a lobe they resolve.
+#define HT_FRONTIER_LOBE_RADII 2.0
 // ht-frontier: partly covered nodes down to this level weigh their children's
 // mean visible share (kFrontierShareLevel).
 #define HT_FRONTIER_SHARE_LEVEL 3

@@ -254,7 +254,8 @@ FrontierNodes gFrCand;
 FrontierReals gFrCandMass, gFrHeapKey;
 FrontierUints gFrHeapIndex;
 uint gFrCandCount, gFrHeapSize;
-float gFrLobeFloor;  // frontierLobeFloor of the point's material
+float gFrLobeFloor;      // frontierLobeFloor of the point's material
+uint gFrProductLevel;    // Frontier's productLevel_: frontierProductLevel, or the option's for a shared table
 
 bool frontierHeapLess(hreal ka, uint ia, hreal kb, uint ib) { return ka < kb || (ka == kb && ia < ib); }
 
@@ -376,13 +377,28 @@ void frontierUseOwn() {
   gFrCum = frontierReals(gFs.offCum);
 }
 
-// frontierLobeFloor.
+// lobeResolved (ht_frontier.cpp).
+bool frontierLobeResolved(float r) {
+  precise float kr = HT_FRONTIER_LOBE_RADII * r;
+  if (ht.material.type == HT_MATERIAL_GGX) return ht.material.alpha >= kr;
+  if (ht.material.type == HT_MATERIAL_PHONG) {
+    precise float lobeWidth2 = 2.0 / ht.material.exponent;
+    precise float nodeWidth2 = 4.0 * kr * kr;
+    return lobeWidth2 >= nodeWidth2;
+  }
+  return true;
+}
+
+// frontierProductLevel.
+uint frontierProductLevel() {
+  uint level = min(gFs.productLevel, ht.order);
+  while (level < ht.order && !frontierLobeResolved(scene.htLevelRadius[level])) ++level;
+  return level;
+}
+
+// frontierLobeFloor at gFrProductLevel.
 float frontierLobeFloor() {
-  float r = scene.htLevelRadius[min(gFs.productLevel, ht.order)];
-  precise float phongWidth2 = 2.0 / ht.material.exponent;
-  precise float nodeWidth2 = 4.0 * r * r;
-  bool resolved = (ht.material.type == HT_MATERIAL_GGX && ht.material.alpha >= r) ||
-                  (ht.material.type == HT_MATERIAL_PHONG && phongWidth2 >= nodeWidth2);
+  bool resolved = ht.material.type != HT_MATERIAL_LAMBERT && frontierLobeResolved(scene.htLevelRadius[gFrProductLevel]);
   return resolved ? gFs.lobeFloor : gFs.brdfFloor;
 }
 
@@ -564,7 +580,7 @@ void frontierChildren(uint level, uint parent, uint parentClass, out hreal w[4],
     cls[j] = parentClass;
     v[j] = 1.0;
   }
-  bool product = level <= gFs.productLevel;
+  bool product = level <= gFrProductLevel;
   if (!product && parentClass != 2u) return;
   if (parentClass == 2u)
     for (uint j = 0u; j < 4u; ++j) {
@@ -702,7 +718,7 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf, out ui
 // Frontier::colourOf: the chroma of a direction drawn in node k that
 // reached `leaf`.
 hvec3 frontierColourOf(uint k, uint leaf) {
-  bool exact = gFrShared || tableNode(k).level >= gFs.productLevel;
+  bool exact = gFrShared || tableNode(k).level >= gFrProductLevel;
   return frontierVisibility(k) == 1u && exact ? frontierLeafChroma(envRadiance(leaf)) : hvec3(frontierChroma(k));
 }
 
@@ -785,6 +801,7 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
   frontierBind(slot);
   gFrTouched = 0u;
   uint table = planar && ht.woLocal.z > 0.0 ? frontierSharedTable() : kFrontierNone;
+  gFrProductLevel = table != kFrontierNone ? gFs.productLevel : frontierProductLevel();
   gFrLambert = material.type == HT_MATERIAL_LAMBERT || table != kFrontierNone;
   hvec3 colourSum = hvec3(0.0);
   hreal colourMass = 0.0;
@@ -823,6 +840,7 @@ GpuFrontierPoint frontierResume(vec3 position, vec3 normal, vec3 wo, GpuMaterial
   frontierCaps(position, normal);
   frontierBind(slot);
   GpuFrontierPoint pt = frontierPoint().v[0];
+  gFrProductLevel = pt.table != kFrontierNone ? gFs.productLevel : frontierProductLevel();
   gFrLambert = material.type == HT_MATERIAL_LAMBERT || pt.table != kFrontierNone;
   if (pt.table != kFrontierNone) {
     frontierUseShared(pt.table);

@@ -267,24 +267,39 @@ TEST(Frontier, CentroidsFollowTheLight) {
   EXPECT_EQ(&frontierFactorDirection(c, g, 0), &c.centroid[0]);
 }
 
-// A specular lobe the descent's product levels resolve takes the small
-// floor; a narrower one, Lambert and the diffuse lobe keep brdfFloor.
-TEST(Frontier, LobeFloorFollowsTheLobeWidth) {
-  const std::shared_ptr<const HtGeometry> g = buildHtGeometry(kEnvOrder);
+// A point's own table weighs its children by the BRDF down to the level
+// whose nodes resolve the specular lobe (a half-width of at least two node
+// radii), never above the option's level nor below the map's order; a lobe
+// resolved there takes the small floor, an unresolved one, Lambert and the
+// diffuse lobe keep brdfFloor.
+TEST(Frontier, ProductLevelAndFloorFollowTheLobeWidth) {
+  constexpr int kOrder = 7;
+  const std::shared_ptr<const HtGeometry> geometry = buildHtGeometry(kOrder);
+  const HtGeometry& g = *geometry;
   const FrontierOptions o;
-  const float r = g->levelRadius[size_t(std::min(o.productLevel, kEnvOrder))];
+  ASSERT_EQ(o.productLevel, 5);
   ASSERT_LT(o.lobeFloor, o.brdfFloor);
-  EXPECT_EQ(frontierLobeFloor(ggx(1.001f * r, glm::vec3(0.9f)), *g, o), o.lobeFloor);
-  EXPECT_EQ(frontierLobeFloor(ggx(0.999f * r, glm::vec3(0.9f)), *g, o), o.brdfFloor);
-  EXPECT_EQ(frontierLobeFloor(ggx(0.3f, glm::vec3(0.04f), glm::vec3(0.5f)), *g, o), o.lobeFloor);
-  const float e = 1.0f / (2.0f * r * r);  // sqrt(2 / e) / 2 = r
-  EXPECT_EQ(frontierLobeFloor(phong(0.99f * e, glm::vec3(0.3f)), *g, o), o.lobeFloor);
-  EXPECT_EQ(frontierLobeFloor(phong(1.01f * e, glm::vec3(0.3f)), *g, o), o.brdfFloor);
-  EXPECT_EQ(frontierLobeFloor(lambert(0.8f), *g, o), o.brdfFloor);
-  // Coarser product levels resolve fewer lobes.
+  const float width5 = kFrontierLobeRadii * g.levelRadius[5], width6 = kFrontierLobeRadii * g.levelRadius[6];
+  auto level = [&](const Material& m) { return frontierProductLevel(m, g, o); };
+  auto floor = [&](const Material& m) { return frontierLobeFloor(m, g, o, level(m)); };
+  EXPECT_EQ(level(ggx(1.001f * width5, glm::vec3(0.9f))), 5);
+  EXPECT_EQ(floor(ggx(1.001f * width5, glm::vec3(0.9f))), o.lobeFloor);
+  EXPECT_EQ(level(ggx(0.999f * width5, glm::vec3(0.9f))), 6);
+  EXPECT_EQ(level(ggx(0.999f * width6, glm::vec3(0.9f))), 7);
+  EXPECT_EQ(level(ggx(0.02f, glm::vec3(0.9f))), 7);  // the chrome of spheres.json
+  EXPECT_EQ(floor(ggx(0.02f, glm::vec3(0.9f))), o.lobeFloor);
+  EXPECT_EQ(level(ggx(0.005f, glm::vec3(0.9f))), kOrder);  // finer than the map
+  EXPECT_EQ(floor(ggx(0.005f, glm::vec3(0.9f))), o.brdfFloor);
+  EXPECT_EQ(level(ggx(0.3f, glm::vec3(0.04f), glm::vec3(0.5f))), 5);
+  const float e = 1.0f / (2.0f * width5 * width5);  // sqrt(2 / e) / 2 = width5
+  EXPECT_EQ(level(phong(0.99f * e, glm::vec3(0.3f))), 5);
+  EXPECT_EQ(level(phong(1.01f * e, glm::vec3(0.3f))), 6);
+  EXPECT_EQ(level(lambert(0.8f)), 5);
+  EXPECT_EQ(floor(lambert(0.8f)), o.brdfFloor);
   FrontierOptions coarse;
   coarse.productLevel = 3;
-  EXPECT_EQ(frontierLobeFloor(ggx(0.08f, glm::vec3(0.9f)), *g, coarse), coarse.brdfFloor);
+  EXPECT_EQ(frontierProductLevel(ggx(0.08f, glm::vec3(0.9f)), g, coarse), 5);
+  EXPECT_EQ(frontierProductLevel(lambert(0.8f), g, coarse), 3);
 }
 
 // On a glossy conductor (GGX alpha 0.08, which the descent resolves), the
