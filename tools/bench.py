@@ -3,7 +3,9 @@
 
 Renders scene x device x method x spp with `htrender render`, times each
 render (the fastest of --runs: other load on the machine only ever adds time;
-one uncounted warm-up render per scene and device first), and measures its
+one uncounted warm-up render per scene and device first; the runs go in
+rounds, every point once per round, so that a slow spell of the machine
+touches every method alike and the ratios between methods hold), and measures its
 error against a converged reference: RMSE, relative MSE and mean absolute
 relative error (`htrender compare`), each the mean over the timed runs, which
 use seeds 1, 2, ...; and the fireflies (of the first run) (pixels whose luminance error exceeds 10 robust sigma of the
@@ -151,6 +153,18 @@ def render(args, scene, method, spp, seed, out, device="cpu", extra=()):
     return json.loads(stats.read_text())
 
 
+def timed_run(args, scene, device, ref, pt, k, out):
+    """Timed run k of a point (seed 1 + k) into `out`, with its error against ref."""
+    stats = render(args, scene, pt["method"], pt["spp"], 1 + k, out, device, pt["extra"])
+    pt["errs"].append(compare(args, ref, out))
+    pt["times"].append(stats["seconds"]["render"])
+    if stats["seconds"].get("gpu") is not None:
+        pt["gpu_times"].append(stats["seconds"]["gpu"])
+    pt["stats"] = stats
+    if args.max_seconds > 0 and pt["times"][-1] > args.max_seconds / 2:
+        pt["done"] = True  # a long render: one timed run is enough
+
+
 def compare(args, ref, test):
     return json.loads(run([args.htrender, "compare", "--ref", str(ref), "--test", str(test)]))
 
@@ -275,6 +289,11 @@ def main():
                         render(args, scene, "mis", min(dev_spps), 1, tmp / "warmup.exr", device, extra)
                     except RenderRefused:
                         pass
+                # Round 0 renders the points in order (method, sampler, spp), predicting
+                # each point's time from the method's last one; every further round renders
+                # each point once more, so that a point's timed runs spread over the whole
+                # bench and a slow spell of the machine touches every method alike.
+                points = []
                 for method in methods:
                     name = method + args.label
                     point_spps = oracle_spps if method == "oracle" else dev_spps
@@ -290,48 +309,55 @@ def main():
                             print(f"bench: {device}: skipping {name} at {spp} spp (about {predicted:.0f} s)",
                                   file=sys.stderr)
                             continue
-                        img = outdir / image_name(scene, name, device, spp, sampler)
-                        point_extra = [*extra, "--sampler", sampler]
-                        times, gpu_times, stats = [], [], None
+                        pt = {"method": method, "name": name, "sampler": sampler, "spp": spp,
+                              "img": outdir / image_name(scene, name, device, spp, sampler),
+                              "extra": [*extra, "--sampler", sampler],
+                              "times": [], "gpu_times": [], "errs": [], "stats": None, "done": False}
                         try:
-                            run_errs = []
-                            for k in range(runs):
-                                out = img if k == 0 else tmp / "run.exr"
-                                stats = render(args, scene, method, spp, 1 + k, out, device, point_extra)
-                                run_errs.append(compare(args, ref, out))
-                                times.append(stats["seconds"]["render"])
-                                if stats["seconds"].get("gpu") is not None:
-                                    gpu_times.append(stats["seconds"]["gpu"])
-                                if args.max_seconds > 0 and times[-1] > args.max_seconds / 2:
-                                    break  # a long render: one timed run is enough
+                            timed_run(args, scene, device, ref, pt, 0, pt["img"])
                         except RenderRefused as e:
                             skipped.append({"scene": Path(scene).stem, "device": device, "method": name,
                                             "reason": str(e)})
                             print(f"bench: {device}: skipping {name}: {e}", file=sys.stderr)
                             break
-                        # Error: the mean over the runs (seeds 1, 2, ...), which tames the seed-to-seed
-                        # spread of relMSE where rare large samples dominate it.
-                        err = {k: statistics.fmean(e[k] for e in run_errs) for k in run_errs[0]
-                               if isinstance(run_errs[0][k], float)}
-                        err["relmse_runs"] = [e["relmse"] for e in run_errs]
-                        ff = fireflies(read_exr(args.htrender, img, tmp), ref_img)
-                        sec = stats["seconds"]
-                        row = {"scene": Path(scene).stem, "method": name, "device": device, "spp": spp,
-                               "sampler": sampler,
-                               "seconds": min(times), "seconds_runs": times,
-                               "gpu_seconds": min(gpu_times) if gpu_times else None,
-                               "setup_seconds": sec.get("environment", 0.0) + sec.get("prepare", 0.0)
-                               + sec.get("device", 0.0) + sec.get("upload", 0.0),
-                               "device_name": stats["device"]["name"],
-                               "samples_per_pixel": stats["mean_samples_per_pixel"],
-                               "fireflies": ff, "file": img.name, **err}
-                        rows.append(row)
-                        gpu = f" (gpu {row['gpu_seconds']:.3f} s)" if row["gpu_seconds"] is not None else ""
-                        print(f"{row['scene']:>16} {device:>4} {name:>14} {sampler[:5]:>5} {spp:>5} spp  "
-                              f"{row['seconds']:8.3f} s{gpu}  "
-                              f"rmse {err['rmse']:.4f}  relmse {err['relmse']:.5f}  fireflies {ff}", file=sys.stderr)
-                        last = (spp, min(times))
-                        Path(img).with_suffix(".json").unlink(missing_ok=True)
+                        points.append(pt)
+                        last = (spp, pt["times"][0])
+                for k in range(1, runs):
+                    print(f"bench: {Path(scene).stem} {device}: timed run {k + 1} of {runs} of every point",
+                          file=sys.stderr)
+                    for pt in points:
+                        if pt["done"]:
+                            continue
+                        try:
+                            timed_run(args, scene, device, ref, pt, k, tmp / "run.exr")
+                        except RenderRefused:
+                            pt["done"] = True
+                for pt in points:
+                    name, spp, run_errs, times, gpu_times = pt["name"], pt["spp"], pt["errs"], pt["times"], pt["gpu_times"]
+                    # Error: the mean over the runs (seeds 1, 2, ...), which tames the seed-to-seed
+                    # spread of relMSE where rare large samples dominate it.
+                    err = {k: statistics.fmean(e[k] for e in run_errs) for k in run_errs[0]
+                           if isinstance(run_errs[0][k], float)}
+                    err["relmse_runs"] = [e["relmse"] for e in run_errs]
+                    img = pt["img"]
+                    ff = fireflies(read_exr(args.htrender, img, tmp), ref_img)
+                    stats = pt["stats"]
+                    sec = stats["seconds"]
+                    row = {"scene": Path(scene).stem, "method": name, "device": device, "spp": spp,
+                           "sampler": pt["sampler"],
+                           "seconds": min(times), "seconds_runs": times,
+                           "gpu_seconds": min(gpu_times) if gpu_times else None,
+                           "setup_seconds": sec.get("environment", 0.0) + sec.get("prepare", 0.0)
+                           + sec.get("device", 0.0) + sec.get("upload", 0.0),
+                           "device_name": stats["device"]["name"],
+                           "samples_per_pixel": stats["mean_samples_per_pixel"],
+                           "fireflies": ff, "file": img.name, **err}
+                    rows.append(row)
+                    gpu = f" (gpu {row['gpu_seconds']:.3f} s)" if row["gpu_seconds"] is not None else ""
+                    print(f"{row['scene']:>16} {device:>4} {name:>14} {pt['sampler'][:5]:>5} {spp:>5} spp  "
+                          f"{row['seconds']:8.3f} s{gpu}  "
+                          f"rmse {err['rmse']:.4f}  relmse {err['relmse']:.5f}  fireflies {ff}", file=sys.stderr)
+                    Path(img).with_suffix(".json").unlink(missing_ok=True)
 
     build = {}
     cache = Path(args.htrender).resolve().parent / "CMakeCache.txt"
