@@ -595,7 +595,8 @@ def main():
           f"Machine: {bench['machine']['cpu']}, {bench['machine']['cores']} cores ({bench['machine']['system']}); "
           f"build {bench['build'].get('type', '?')} {bench['build'].get('version', '')}; devices "
           f"{', '.join(bench.get('devices', [bench.get('device', 'cpu')]))}; the fastest of {bench['runs']} timed "
-          f"run(s) per point on the cpu, {bench.get('gpu_runs', bench['runs'])} on other devices, after a warm-up. Every compared number comes from one run of the tools, methods side by side. "
+          f"run(s) per point on the cpu, {bench.get('gpu_runs', bench['runs'])} on other devices, after a warm-up, "
+          f"the runs in rounds that render every point once. Every compared number comes from one run of the tools, methods side by side. "
           f"Regenerate with `{args.command}`.", ""]
     for scene_path, info in bench["references"].items():
         scene = Path(scene_path).stem
