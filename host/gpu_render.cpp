@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <optional>
 
 #include <fmt/format.h>
@@ -54,12 +55,20 @@ static_assert(12ull * ((1ull << HT_TSIS_MAX_LEVEL) + 1) * ((1ull << HT_TSIS_MAX_
 static_assert(int(MaterialType::Lambert) == HT_MATERIAL_LAMBERT && int(MaterialType::Phong) == HT_MATERIAL_PHONG &&
               int(MaterialType::Ggx) == HT_MATERIAL_GGX);
 
+// A uniform block: within every device's maxUniformBufferRange (at least 16 KiB).
+static_assert(sizeof(GpuScene) <= 16384);
+
 constexpr vk::BindingLayout kBindings[] = {
-    {HT_BINDING_SCENE, sizeof(GpuScene), 0},
+    {HT_BINDING_SCENE, sizeof(GpuScene), 0, vk::BindingKind::Uniform},
     {HT_BINDING_MATERIALS, 0, sizeof(GpuMaterial)},
     {HT_BINDING_SPHERES, 0, sizeof(GpuSphere)},
     {HT_BINDING_PLANES, 0, sizeof(GpuPlane)},
     {HT_BINDING_PIXELS, 0, sizeof(GpuPixel)},
+    {HT_BINDING_RADIANCE_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_TREE_AVG_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_TREE_MAX_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_HT_CENTERS_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_HT_CONES_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
 };
 static_assert(std::size(kBindings) == HT_BINDING_COUNT);
 
@@ -189,6 +198,9 @@ struct GpuRenderer::Impl {
   std::string shaderName;  // the current pipeline's SPIR-V file
   std::optional<vk::ComputePipeline> pipeline;
   uint32_t pipelineMethod = HT_METHOD_ANY;  // what the pipeline is specialized for
+  bool texelViews = true;       // GpuOptions::texelViews
+  bool texels = false;          // the scene's arrays fit their texel views (HT_SPEC_TEXELS)
+  bool pipelineTexels = false;  // the pipeline's HT_SPEC_TEXELS
   VkQueryPool queries = VK_NULL_HANDLE;
   uint64_t timestampMask = 0;
   uint32_t maxTileSide = 512;
@@ -198,6 +210,11 @@ struct GpuRenderer::Impl {
   bool hasScene = false;
   std::vector<vk::Buffer> chunks;
   vk::Buffer sceneBuffer, materials, spheres, planes;
+  vk::Buffer placeholder;  // one float
+  // Per texel binding, the buffer (first chunk) it views; null: none.
+  std::map<uint32_t, vk::Buffer*> texelBuffers{{HT_BINDING_RADIANCE_TEXELS, nullptr}, {HT_BINDING_TREE_AVG_TEXELS, nullptr},
+                                               {HT_BINDING_TREE_MAX_TEXELS, nullptr}, {HT_BINDING_HT_CENTERS_TEXELS, nullptr},
+                                               {HT_BINDING_HT_CONES_TEXELS, nullptr}};
   // Per tile.
   vk::Buffer pixels;
   vk::Buffer pixelState;   // GpuPixelState per tile pixel
@@ -250,6 +267,7 @@ struct GpuRenderer::Impl {
     info = toInfo(ctx.info);
     recordHtSamples = o.recordHtSamples;
     batchLimit = o.batchLimit;
+    texelViews = o.texelViews;
     maxTileSide = std::max<uint32_t>(kWorkgroupSize, uint32_t(std::max(o.maxTileSide, 1)) / kWorkgroupSize * kWorkgroupSize);
     shaderDir = o.shaderDir.empty() ? shaderDirNextToExecutable() : o.shaderDir;
     // Checks a shader against the host now; the cheapest method's pipeline,
@@ -267,21 +285,26 @@ struct GpuRenderer::Impl {
   // The method's family shader specialized for it (HT_SPEC_METHOD), with
   // the buffers bound so far bound again.
   void usePipeline(Method method) {
-    if (pipelineMethod == uint32_t(method)) return;
-    const uint32_t specialization[] = {uint32_t(method)};
+    if (pipelineMethod == uint32_t(method) && pipelineTexels == texels) return;
+    const uint32_t specialization[] = {uint32_t(method), texels ? 1u : 0u};
     shaderName =
         fmt::format("{}.{}.spv", familyShader(methodInfo(method).family), usesFloat64(method) ? "fp64" : "fp32");
     pipeline.emplace(ctx, (std::filesystem::path(shaderDir) / shaderName).string(), kBindings,
                      uint32_t(sizeof(GpuPush)), std::array<uint32_t, 3>{kWorkgroupSize, kWorkgroupSize, 1},
                      specialization);
     pipelineMethod = uint32_t(method);
-    if (hasScene) {
-      pipeline->setBuffer(HT_BINDING_SCENE, sceneBuffer);
-      pipeline->setBuffer(HT_BINDING_MATERIALS, materials);
-      pipeline->setBuffer(HT_BINDING_SPHERES, spheres);
-      pipeline->setBuffer(HT_BINDING_PLANES, planes);
-    }
+    pipelineTexels = texels;
+    if (hasScene) bindScene();
     if (pixels.size() > 0) pipeline->setBuffer(HT_BINDING_PIXELS, pixels);
+  }
+  // The scene's buffers and texel views, with `placeholder` where an array is absent.
+  void bindScene() {
+    pipeline->setBuffer(HT_BINDING_SCENE, sceneBuffer);
+    pipeline->setBuffer(HT_BINDING_MATERIALS, materials);
+    pipeline->setBuffer(HT_BINDING_SPHERES, spheres);
+    pipeline->setBuffer(HT_BINDING_PLANES, planes);
+    for (auto [binding, buffer] : texelBuffers)
+      pipeline->setTexelBuffer(binding, (texels && buffer ? buffer : &placeholder)->floatView());
   }
   ~Impl() {
     if (ctx.device) ctx.fn.vkDeviceWaitIdle(ctx.device);
@@ -309,12 +332,26 @@ void GpuRenderer::setScene(const Scene& scene) {
   if (env.radiance.size() != pixelCount || env.tree.avgv.size() != env.tree.maxv.size() ||
       env.tree.avgv.size() < MaxAvgTree::levelOffset(env.order + 1))
     throw Error("internal: environment without its radiance or trees");
+  size_t first[3];
+  first[0] = m.chunks.size();
   uploadChunked(ctx, env.radiance.data(), pixelCount, sizeof(glm::vec3), kRadianceChunkElements, m.chunks,
                 gs.radiance, "environment radiance");
+  first[1] = m.chunks.size();
   uploadChunked(ctx, env.tree.avgv.data(), env.tree.avgv.size(), sizeof(float), kTreeChunkElements, m.chunks,
                 gs.treeAvg, "environment average tree");
+  first[2] = m.chunks.size();
   uploadChunked(ctx, env.tree.maxv.data(), env.tree.maxv.size(), sizeof(float), kTreeChunkElements, m.chunks,
                 gs.treeMax, "environment max tree");
+  // The HT geometry has one element per tree node.
+  const uint64_t nodes = env.tree.maxv.size(), maxTexels = ctx.info.maxTexelBufferElements;
+  m.texels = m.texelViews && pixelCount <= kRadianceChunkElements && 3 * pixelCount <= maxTexels &&
+             nodes <= kTreeChunkElements && nodes <= (uint64_t(1) << HT_HT_VEC3_CHUNK_SHIFT) &&
+             nodes <= (uint64_t(1) << HT_HT_VEC2_CHUNK_SHIFT) && 3 * nodes <= maxTexels;
+  if (!m.placeholder.handle()) m.placeholder = vk::Buffer(ctx, sizeof(float), vk::MemoryUse::DeviceLocal);
+  for (auto& [binding, buffer] : m.texelBuffers) buffer = nullptr;
+  m.texelBuffers[HT_BINDING_RADIANCE_TEXELS] = &m.chunks[first[0]];
+  m.texelBuffers[HT_BINDING_TREE_AVG_TEXELS] = &m.chunks[first[1]];
+  m.texelBuffers[HT_BINDING_TREE_MAX_TEXELS] = &m.chunks[first[2]];
 
   // The camera basis exactly as cameraRay (host/scene.cpp) computes it.
   const Camera& c = scene.camera;
@@ -351,10 +388,7 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.materials = uploadArray(ctx, materials);
   m.spheres = uploadArray(ctx, spheres);
   m.planes = uploadArray(ctx, planes);
-  m.pipeline->setBuffer(HT_BINDING_SCENE, m.sceneBuffer);
-  m.pipeline->setBuffer(HT_BINDING_MATERIALS, m.materials);
-  m.pipeline->setBuffer(HT_BINDING_SPHERES, m.spheres);
-  m.pipeline->setBuffer(HT_BINDING_PLANES, m.planes);
+  m.bindScene();
   m.scene = gs;
   m.envOrder = env.order;
   m.materialCount = scene.materials.size();
@@ -389,8 +423,11 @@ void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables
       geometryBuffers.clear();
       uploadChunked(ctx, g.centers.data(), g.centers.size(), sizeof(glm::vec3),
                     uint64_t(1) << HT_HT_VEC3_CHUNK_SHIFT, geometryBuffers, scene.htCenters, "HT node centres");
+      const size_t cones = geometryBuffers.size();
       uploadChunked(ctx, g.cosSinRadius.data(), g.cosSinRadius.size(), sizeof(glm::vec2),
                     uint64_t(1) << HT_HT_VEC2_CHUNK_SHIFT, geometryBuffers, scene.htCosSinRadius, "HT node radii");
+      texelBuffers[HT_BINDING_HT_CENTERS_TEXELS] = &geometryBuffers[0];
+      texelBuffers[HT_BINDING_HT_CONES_TEXELS] = &geometryBuffers[cones];
       static_assert(sizeof(scene.htLevelRadius) == sizeof(g.levelRadius));
       std::copy(g.levelRadius.begin(), g.levelRadius.end(), scene.htLevelRadius);
       geometry = t.htGeometry;
@@ -425,7 +462,10 @@ void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables
     uploadFrontier(s, t);
     changed = true;
   }
-  if (changed) sceneBuffer.upload(&scene, sizeof(scene));
+  if (changed) {
+    sceneBuffer.upload(&scene, sizeof(scene));
+    bindScene();
+  }
 }
 
 namespace {

@@ -35,6 +35,7 @@ struct GpuOptions {
   int maxTileSide = 512;    // tiles are at most this many pixels wide and high (a multiple of 8)
   bool recordHtSamples = false;  // ht*: keep the first 64 accepted samples of every pixel (tests)
   uint32_t batchLimit = 0;  // samples (ht*: traversal steps) per pixel and dispatch to start with; 0: estimated
+  bool texelViews = true;   // the large arrays through texel views where they fit (false: device addresses only)
 };
 
 // One Vulkan device, as `htrender info` lists it.

@@ -4,11 +4,19 @@
 
 #include "common.h"
 
-layout(set = 0, binding = HT_BINDING_SCENE, scalar) readonly buffer SceneBuffer { GpuScene scene; };
+layout(set = 0, binding = HT_BINDING_SCENE, scalar) uniform SceneBuffer { GpuScene scene; };
 layout(set = 0, binding = HT_BINDING_MATERIALS, scalar) readonly buffer MaterialBuffer { GpuMaterial materials[]; };
 layout(set = 0, binding = HT_BINDING_SPHERES, scalar) readonly buffer SphereBuffer { GpuSphere spheres[]; };
 layout(set = 0, binding = HT_BINDING_PLANES, scalar) readonly buffer PlaneBuffer { GpuPlane planes[]; };
 layout(set = 0, binding = HT_BINDING_PIXELS, scalar) writeonly buffer PixelBuffer { GpuPixel pixels[]; };
 layout(push_constant, scalar) uniform PushBlock { GpuPush pc; };
+// The large arrays through their texel views (true) or their chunks' device
+// addresses (false), chosen per scene by the host.
+layout(constant_id = HT_SPEC_TEXELS) const bool kTexels = false;
+layout(set = 0, binding = HT_BINDING_RADIANCE_TEXELS) uniform samplerBuffer radianceTexels;
+layout(set = 0, binding = HT_BINDING_TREE_AVG_TEXELS) uniform samplerBuffer treeAvgTexels;
+layout(set = 0, binding = HT_BINDING_TREE_MAX_TEXELS) uniform samplerBuffer treeMaxTexels;
+layout(set = 0, binding = HT_BINDING_HT_CENTERS_TEXELS) uniform samplerBuffer htCentersTexels;
+layout(set = 0, binding = HT_BINDING_HT_CONES_TEXELS) uniform samplerBuffer htConesTexels;
 
 #endif

@@ -19,7 +19,16 @@
 #define HT_BINDING_SPHERES 2    // GpuSphere[]
 #define HT_BINDING_PLANES 3     // GpuPlane[]
 #define HT_BINDING_PIXELS 4     // GpuPixel[] of the current tile (written)
-#define HT_BINDING_COUNT 5
+// Where every large array fits in its first chunk and in a texel buffer
+// view (kTexels), the shaders read that chunk as floats of a uniform texel
+// buffer: lavapipe gathers those for all lanes at once, where it loads
+// through a device address lane by lane.
+#define HT_BINDING_RADIANCE_TEXELS 5
+#define HT_BINDING_TREE_AVG_TEXELS 6
+#define HT_BINDING_TREE_MAX_TEXELS 7
+#define HT_BINDING_HT_CENTERS_TEXELS 8
+#define HT_BINDING_HT_CONES_TEXELS 9
+#define HT_BINDING_COUNT 10
 
 // Chunked arrays: element i lives in chunk i >> SHIFT at i & (2^SHIFT - 1).
 #define HT_MAX_CHUNKS 128
@@ -46,6 +55,7 @@
 #define HT_METHOD_HT_FRONTIER 14
 #define HT_METHOD_ANY 0xFFFFFFFFu  // pixel.glsl's specialization constant: use GpuPush::method
 #define HT_SPEC_METHOD 0           // its constant_id
+#define HT_SPEC_TEXELS 1           // constant_id of bindings.glsl's kTexels
 
 // GpuPush::sampler: the values of ht::SamplerKind (host/sampler.h).
 #define HT_SAMPLER_INDEPENDENT 0

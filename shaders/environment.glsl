@@ -7,9 +7,15 @@
 #include "healpix.glsl"
 
 vec3 envRadiance(uint pixel) {
+  if (kTexels) {
+    int t = 3 * int(pixel);
+    return vec3(texelFetch(radianceTexels, t).x, texelFetch(radianceTexels, t + 1).x,
+                texelFetch(radianceTexels, t + 2).x);
+  }
   return scene.radiance[pixel >> HT_RADIANCE_CHUNK_SHIFT].v[pixel & ((1u << HT_RADIANCE_CHUNK_SHIFT) - 1u)];
 }
 float treeAvg(uint node) {
+  if (kTexels) return texelFetch(treeAvgTexels, int(node)).x;
   return scene.treeAvg[node >> HT_TREE_CHUNK_SHIFT].v[node & ((1u << HT_TREE_CHUNK_SHIFT) - 1u)];
 }
 uint levelOffset(uint level) { return 4u * ((1u << (2u * level)) - 1u); }

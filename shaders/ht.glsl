@@ -45,11 +45,23 @@ const float kHtFourPi = 12.566370614359172953850573533118;
 
 layout(buffer_reference, scalar, buffer_reference_align = 4) writeonly buffer HtSampleLog { GpuHtSample s[]; };
 
-float htTreeMax(uint i) { return scene.treeMax[i >> HT_TREE_CHUNK_SHIFT].v[i & ((1u << HT_TREE_CHUNK_SHIFT) - 1u)]; }
+float htTreeMax(uint i) {
+  if (kTexels) return texelFetch(treeMaxTexels, int(i)).x;
+  return scene.treeMax[i >> HT_TREE_CHUNK_SHIFT].v[i & ((1u << HT_TREE_CHUNK_SHIFT) - 1u)];
+}
 vec3 htCenter(uint i) {
+  if (kTexels) {
+    int t = 3 * int(i);
+    return vec3(texelFetch(htCentersTexels, t).x, texelFetch(htCentersTexels, t + 1).x,
+                texelFetch(htCentersTexels, t + 2).x);
+  }
   return scene.htCenters[i >> HT_HT_VEC3_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC3_CHUNK_SHIFT) - 1u)];
 }
 vec2 htCosSinRadius(uint i) {
+  if (kTexels) {
+    int t = 2 * int(i);
+    return vec2(texelFetch(htConesTexels, t).x, texelFetch(htConesTexels, t + 1).x);
+  }
   return scene.htCosSinRadius[i >> HT_HT_VEC2_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC2_CHUNK_SHIFT) - 1u)];
 }
 

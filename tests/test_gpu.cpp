@@ -143,11 +143,19 @@ TEST(GpuShaders, InterfaceMatchesCommonHeader) {
     for (const vk::SpirvInterface::Binding& b : s.bindings) {
       EXPECT_EQ(b.set, 0u);
       switch (b.binding) {
-        case HT_BINDING_SCENE: EXPECT_EQ(b.staticSize, sizeof(gpu::GpuScene)); break;
+        case HT_BINDING_SCENE:
+          EXPECT_EQ(b.staticSize, sizeof(gpu::GpuScene));
+          EXPECT_EQ(b.kind, vk::BindingKind::Uniform);
+          break;
         case HT_BINDING_MATERIALS: EXPECT_EQ(b.runtimeStride, sizeof(gpu::GpuMaterial)); break;
         case HT_BINDING_SPHERES: EXPECT_EQ(b.runtimeStride, sizeof(gpu::GpuSphere)); break;
         case HT_BINDING_PLANES: EXPECT_EQ(b.runtimeStride, sizeof(gpu::GpuPlane)); break;
         case HT_BINDING_PIXELS: EXPECT_EQ(b.runtimeStride, sizeof(gpu::GpuPixel)); break;
+        case HT_BINDING_RADIANCE_TEXELS:
+        case HT_BINDING_TREE_AVG_TEXELS:
+        case HT_BINDING_TREE_MAX_TEXELS:
+        case HT_BINDING_HT_CENTERS_TEXELS:
+        case HT_BINDING_HT_CONES_TEXELS: EXPECT_EQ(b.kind, vk::BindingKind::UniformTexel); break;
         default: ADD_FAILURE() << "unexpected binding " << b.binding;
       }
     }
@@ -714,6 +722,26 @@ size_t differingPixels(const GpuRenderResult& a, const GpuRenderResult& b) {
   size_t differ = 0;
   for (size_t i = 0; i < a.result.image.pixels.size(); ++i) differ += a.result.image.pixels[i] != b.result.image.pixels[i];
   return differ;
+}
+
+// The large arrays read through texel views or through device addresses
+// (maps too large for the views): the same images and counts.
+TEST(GpuRenderTiles, TexelViewsAndDeviceAddressesGiveTheSameImage) {
+  GpuOptions addresses = gpuOptions();
+  addresses.texelViews = false;
+  GpuRenderer a(gpuOptions()), b(addresses);
+  a.setScene(testScene());
+  b.setScene(testScene());
+  for (Method m : {Method::Mis, Method::HtVis, Method::HtBiased, Method::HtFrontier, Method::Ris}) {
+    SCOPED_TRACE(methodName(m));
+    const RenderSettings rs = settings(m, 8, 7, 40, 20);
+    const GpuRenderResult ga = a.render(rs), gb = b.render(rs);
+    EXPECT_GT(ga.result.shadedPixels, 0u);
+    EXPECT_EQ(ga.result.counters.directions, gb.result.counters.directions);
+    EXPECT_EQ(ga.result.counters.htNodes, gb.result.counters.htNodes);
+    EXPECT_EQ(differingPixels(ga, gb), 0u);
+  }
+  expectNoValidationMessages();
 }
 
 // tsis and wis keep each pixel's partition or product tree in a scratch

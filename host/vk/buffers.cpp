@@ -54,7 +54,9 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size, MemoryUse use, VkBufferUsageFlag
                               double(size) / (1 << 20), double(largestHeap) / (1 << 20)));
     VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
     info.size = size;
-    info.usage = usage | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT |
+    info.usage = usage | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT |
+                 VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
+                 VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT |
                  VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
     check(ctx.fn.vkCreateBuffer(ctx.device, &info, nullptr, &buffer_), "vkCreateBuffer");
@@ -94,6 +96,7 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
     ctx_ = std::exchange(o.ctx_, nullptr);
     buffer_ = std::exchange(o.buffer_, VK_NULL_HANDLE);
     memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
+    view_ = std::exchange(o.view_, VK_NULL_HANDLE);
     size_ = std::exchange(o.size_, 0);
     address_ = std::exchange(o.address_, 0);
     mapped_ = std::exchange(o.mapped_, nullptr);
@@ -105,12 +108,26 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
 void Buffer::release() {
   if (!ctx_) return;
   if (mapped_) ctx_->fn.vkUnmapMemory(ctx_->device, memory_);
+  if (view_) ctx_->fn.vkDestroyBufferView(ctx_->device, view_, nullptr);
   if (buffer_) ctx_->fn.vkDestroyBuffer(ctx_->device, buffer_, nullptr);
   if (memory_) ctx_->fn.vkFreeMemory(ctx_->device, memory_, nullptr);
   mapped_ = nullptr;
   buffer_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;
+  view_ = VK_NULL_HANDLE;
   ctx_ = nullptr;
+}
+
+VkBufferView Buffer::floatView() {
+  if (view_) return view_;
+  if (!ctx_ || size_ < sizeof(float)) throw Error("internal: a texel view of an empty buffer");
+  VkBufferViewCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+  info.buffer = buffer_;
+  info.format = VK_FORMAT_R32_SFLOAT;
+  info.offset = 0;
+  info.range = std::min<VkDeviceSize>(size_ / sizeof(float), ctx_->info.maxTexelBufferElements) * sizeof(float);
+  check(ctx_->fn.vkCreateBufferView(ctx_->device, &info, nullptr, &view_), "vkCreateBufferView");
+  return view_;
 }
 
 void Buffer::upload(const void* data, size_t bytes) {

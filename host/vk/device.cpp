@@ -147,6 +147,7 @@ PhysicalDeviceInfo describe(VkPhysicalDevice pd, uint32_t index) {
   d.apiVersion = props.apiVersion;
   d.apiVersionString = versionString(props.apiVersion);
   d.maxStorageBufferRange = props.limits.maxStorageBufferRange;
+  d.maxTexelBufferElements = props.limits.maxTexelBufferElements;
   d.maxPushConstantsSize = props.limits.maxPushConstantsSize;
   d.timestampPeriodNs = props.limits.timestampPeriod;
 

@@ -44,6 +44,7 @@ struct PhysicalDeviceInfo {
   uint32_t timestampValidBits = 0;
   float timestampPeriodNs = 0.0f;
   uint64_t maxStorageBufferRange = 0;
+  uint32_t maxTexelBufferElements = 0;
   uint32_t maxPushConstantsSize = 0;
   uint32_t subgroupSize = 0;
   uint64_t deviceLocalBytes = 0;

@@ -18,7 +18,7 @@ enum : uint32_t {
   OpDecorate = 71, OpMemberDecorate = 72,
 };
 enum : uint32_t { DecArrayStride = 6, DecBinding = 33, DecDescriptorSet = 34, DecOffset = 35 };
-enum : uint32_t { ScUniform = 2, ScPushConstant = 9, ScStorageBuffer = 12, ScPhysicalStorageBuffer = 5349 };
+enum : uint32_t { ScUniformConstant = 0, ScUniform = 2, ScPushConstant = 9, ScStorageBuffer = 12, ScPhysicalStorageBuffer = 5349 };
 constexpr uint32_t kExecutionModeLocalSize = 17;
 constexpr uint32_t kSpirvMagic = 0x07230203;
 
@@ -117,11 +117,18 @@ SpirvInterface reflectSpirv(std::span<const uint32_t> code) {
     const uint32_t storage = ptr.operands[0], block = ptr.operands[1];
     if (storage == ScPushConstant) {
       iface.pushConstantSize = m.size(block);
+    } else if (storage == ScUniformConstant && m.binding.count(id)) {
+      SpirvInterface::Binding b;
+      b.set = m.set.count(id) ? m.set.at(id) : 0;
+      b.binding = m.binding.at(id);
+      b.kind = BindingKind::UniformTexel;
+      iface.bindings.push_back(b);
     } else if ((storage == ScStorageBuffer || storage == ScUniform) && m.binding.count(id)) {
       SpirvInterface::Binding b;
       b.set = m.set.count(id) ? m.set.at(id) : 0;
       b.binding = m.binding.at(id);
       b.staticSize = m.size(block);
+      b.kind = storage == ScUniform ? BindingKind::Uniform : BindingKind::Storage;
       const Type& s = m.types.at(block);
       if (s.op == OpTypeStruct && !s.operands.empty()) {
         const Type& last = m.types.at(s.operands.back());
@@ -150,6 +157,7 @@ ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::spa
   for (const SpirvInterface::Binding& b : iface.bindings) {
     auto host = std::find_if(bindings.begin(), bindings.end(), [&](const BindingLayout& l) { return l.binding == b.binding; });
     if (b.set != 0 || host == bindings.end()) throw mismatch(fmt::format("unknown binding {}.{}", b.set, b.binding));
+    if (b.kind != host->kind) throw mismatch(fmt::format("binding {} is another kind of descriptor", b.binding));
     if (b.staticSize != host->staticSize || b.runtimeStride != host->runtimeStride)
       throw mismatch(fmt::format("binding {} holds {} bytes + {}-byte elements, host has {} + {}", b.binding,
                                  b.staticSize, b.runtimeStride, host->staticSize, host->runtimeStride));
@@ -162,8 +170,15 @@ ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::spa
     check(ctx.fn.vkCreateShaderModule(ctx.device, &moduleInfo, nullptr, &module_), "vkCreateShaderModule");
 
     std::vector<VkDescriptorSetLayoutBinding> layoutBindings;
-    for (const BindingLayout& b : bindings)
-      layoutBindings.push_back({b.binding, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
+    std::map<VkDescriptorType, uint32_t> typeCounts;
+    for (const BindingLayout& b : bindings) {
+      const VkDescriptorType type = b.kind == BindingKind::Uniform        ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER
+                                    : b.kind == BindingKind::UniformTexel ? VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER
+                                                                          : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+      ++typeCounts[type];
+      types_.emplace_back(b.binding, type);
+      layoutBindings.push_back({b.binding, type, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
+    }
     VkDescriptorSetLayoutCreateInfo setInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
     setInfo.bindingCount = uint32_t(layoutBindings.size());
     setInfo.pBindings = layoutBindings.data();
@@ -191,11 +206,12 @@ ComputePipeline::ComputePipeline(Context& ctx, const std::string& path, std::spa
     check(ctx.fn.vkCreateComputePipelines(ctx.device, VK_NULL_HANDLE, 1, &pipelineInfo, nullptr, &pipeline_),
           "vkCreateComputePipelines");
 
-    VkDescriptorPoolSize poolSize{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, uint32_t(bindings.size())};
+    std::vector<VkDescriptorPoolSize> poolSizes;
+    for (auto [type, count] : typeCounts) poolSizes.push_back({type, count});
     VkDescriptorPoolCreateInfo poolInfo{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
     poolInfo.maxSets = 1;
-    poolInfo.poolSizeCount = 1;
-    poolInfo.pPoolSizes = &poolSize;
+    poolInfo.poolSizeCount = uint32_t(poolSizes.size());
+    poolInfo.pPoolSizes = poolSizes.data();
     check(ctx.fn.vkCreateDescriptorPool(ctx.device, &poolInfo, nullptr, &pool_), "vkCreateDescriptorPool");
     VkDescriptorSetAllocateInfo alloc{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
     alloc.descriptorPool = pool_;
@@ -229,9 +245,29 @@ void ComputePipeline::setBuffer(uint32_t binding, const Buffer& buffer) {
   write.dstSet = set_;
   write.dstBinding = binding;
   write.descriptorCount = 1;
-  write.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  write.descriptorType = descriptorType(binding);
+  if (write.descriptorType == VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER)
+    throw Error(fmt::format("internal: binding {} takes a texel buffer view", binding));
   write.pBufferInfo = &info;
   ctx_.fn.vkUpdateDescriptorSets(ctx_.device, 1, &write, 0, nullptr);
+}
+
+void ComputePipeline::setTexelBuffer(uint32_t binding, VkBufferView view) {
+  VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  write.dstSet = set_;
+  write.dstBinding = binding;
+  write.descriptorCount = 1;
+  write.descriptorType = descriptorType(binding);
+  if (write.descriptorType != VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER)
+    throw Error(fmt::format("internal: binding {} takes a buffer", binding));
+  write.pTexelBufferView = &view;
+  ctx_.fn.vkUpdateDescriptorSets(ctx_.device, 1, &write, 0, nullptr);
+}
+
+VkDescriptorType ComputePipeline::descriptorType(uint32_t binding) const {
+  auto type = std::find_if(types_.begin(), types_.end(), [&](const auto& t) { return t.first == binding; });
+  if (type == types_.end()) throw Error(fmt::format("internal: binding {} not in the pipeline's layout", binding));
+  return type->second;
 }
 
 void ComputePipeline::dispatch(VkCommandBuffer cmd, const void* pushConstants, uint32_t groupsX, uint32_t groupsY,

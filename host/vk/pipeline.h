@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "vk/buffers.h"
@@ -20,11 +21,17 @@ namespace ht::vk {
 std::vector<uint32_t> loadSpirv(const std::string& path);
 
 // What a compute shader declares (set 0 storage buffers and push constants).
+// How a shader reads a binding: storage buffer, uniform block (small data
+// read by all lanes alike), or uniform texel buffer (large read-only arrays
+// gathered lane by lane).
+enum class BindingKind { Storage, Uniform, UniformTexel };
+
 struct SpirvInterface {
   struct Binding {
     uint32_t set = 0, binding = 0;
     uint64_t staticSize = 0;     // bytes before a trailing runtime array
     uint64_t runtimeStride = 0;  // element stride of the trailing runtime array, 0 if none
+    BindingKind kind = BindingKind::Storage;
   };
   std::vector<Binding> bindings;
   uint64_t pushConstantSize = 0;
@@ -36,8 +43,9 @@ SpirvInterface reflectSpirv(std::span<const uint32_t> code);
 // its array (set stride and leave staticSize 0).
 struct BindingLayout {
   uint32_t binding;
-  uint64_t staticSize;
+  uint64_t staticSize;  // 0 for a texel buffer
   uint64_t runtimeStride;
+  BindingKind kind = BindingKind::Storage;
 };
 
 class ComputePipeline {
@@ -52,6 +60,8 @@ class ComputePipeline {
 
   // Points `binding` at the whole of `buffer` (not while a dispatch using it is in flight).
   void setBuffer(uint32_t binding, const Buffer& buffer);
+  // Points a texel buffer binding at `view`.
+  void setTexelBuffer(uint32_t binding, VkBufferView view);
   // Binds the pipeline and its set, pushes the constants and dispatches.
   void dispatch(VkCommandBuffer cmd, const void* pushConstants, uint32_t groupsX, uint32_t groupsY,
                 uint32_t groupsZ = 1) const;
@@ -65,7 +75,9 @@ class ComputePipeline {
   VkPipeline pipeline_ = VK_NULL_HANDLE;
   VkDescriptorPool pool_ = VK_NULL_HANDLE;
   VkDescriptorSet set_ = VK_NULL_HANDLE;
+  std::vector<std::pair<uint32_t, VkDescriptorType>> types_;  // per binding
   void destroy();
+  VkDescriptorType descriptorType(uint32_t binding) const;
 };
 
 }  // namespace ht::vk
