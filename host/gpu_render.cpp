@@ -69,6 +69,9 @@ constexpr vk::BindingLayout kBindings[] = {
     {HT_BINDING_TREE_MAX_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
     {HT_BINDING_HT_CENTERS_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
     {HT_BINDING_HT_CONES_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_FRONTIER_CHROMA_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_FRONTIER_CENTROID_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_FRONTIER_BINS_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
 };
 static_assert(std::size(kBindings) == HT_BINDING_COUNT);
 
@@ -210,11 +213,14 @@ struct GpuRenderer::Impl {
   bool hasScene = false;
   std::vector<vk::Buffer> chunks;
   vk::Buffer sceneBuffer, materials, spheres, planes;
-  vk::Buffer placeholder;  // one float
+  vk::Buffer placeholder, placeholderUint;  // one float, one uint
   // Per texel binding, the buffer (first chunk) it views; null: none.
   std::map<uint32_t, vk::Buffer*> texelBuffers{{HT_BINDING_RADIANCE_TEXELS, nullptr}, {HT_BINDING_TREE_AVG_TEXELS, nullptr},
                                                {HT_BINDING_TREE_MAX_TEXELS, nullptr}, {HT_BINDING_HT_CENTERS_TEXELS, nullptr},
-                                               {HT_BINDING_HT_CONES_TEXELS, nullptr}};
+                                               {HT_BINDING_HT_CONES_TEXELS, nullptr},
+                                               {HT_BINDING_FRONTIER_CHROMA_TEXELS, nullptr},
+                                               {HT_BINDING_FRONTIER_CENTROID_TEXELS, nullptr},
+                                               {HT_BINDING_FRONTIER_BINS_TEXELS, nullptr}};
   // Per tile.
   vk::Buffer pixels;
   vk::Buffer pixelState;   // GpuPixelState per tile pixel
@@ -303,8 +309,12 @@ struct GpuRenderer::Impl {
     pipeline->setBuffer(HT_BINDING_MATERIALS, materials);
     pipeline->setBuffer(HT_BINDING_SPHERES, spheres);
     pipeline->setBuffer(HT_BINDING_PLANES, planes);
-    for (auto [binding, buffer] : texelBuffers)
-      pipeline->setTexelBuffer(binding, (texels && buffer ? buffer : &placeholder)->floatView());
+    for (auto [binding, buffer] : texelBuffers) {
+      const VkFormat format = binding == HT_BINDING_FRONTIER_BINS_TEXELS ? VK_FORMAT_R32_UINT : VK_FORMAT_R32_SFLOAT;
+      pipeline->setTexelBuffer(binding, (texels && buffer ? buffer : format == VK_FORMAT_R32_UINT ? &placeholderUint
+                                                                                                   : &placeholder)
+                                            ->texelView(format));
+    }
   }
   ~Impl() {
     if (ctx.device) ctx.fn.vkDeviceWaitIdle(ctx.device);
@@ -348,6 +358,7 @@ void GpuRenderer::setScene(const Scene& scene) {
              nodes <= kTreeChunkElements && nodes <= (uint64_t(1) << HT_HT_VEC3_CHUNK_SHIFT) &&
              nodes <= (uint64_t(1) << HT_HT_VEC2_CHUNK_SHIFT) && 3 * nodes <= maxTexels;
   if (!m.placeholder.handle()) m.placeholder = vk::Buffer(ctx, sizeof(float), vk::MemoryUse::DeviceLocal);
+  if (!m.placeholderUint.handle()) m.placeholderUint = vk::Buffer(ctx, sizeof(uint32_t), vk::MemoryUse::DeviceLocal);
   for (auto& [binding, buffer] : m.texelBuffers) buffer = nullptr;
   m.texelBuffers[HT_BINDING_RADIANCE_TEXELS] = &m.chunks[first[0]];
   m.texelBuffers[HT_BINDING_TREE_AVG_TEXELS] = &m.chunks[first[1]];
@@ -548,6 +559,10 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
     upload(colours.chroma, frontierChromaBuffers, frontierChroma, "ht-frontier chroma");
     upload(colours.centroid, frontierCentroidBuffers, frontierCentroid, "ht-frontier centroids");
     frontierColours = t.frontierColours;
+    texelBuffers[HT_BINDING_FRONTIER_CHROMA_TEXELS] = &frontierChromaBuffers[0];
+    texelBuffers[HT_BINDING_FRONTIER_CENTROID_TEXELS] = &frontierCentroidBuffers[0];
+    texelBuffers[HT_BINDING_FRONTIER_BINS_TEXELS] = &frontierBinsBuffer;
+    bindScene();
   }
   GpuFrontierScene& f = frontier;
   f = GpuFrontierScene{};

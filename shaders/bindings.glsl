@@ -18,5 +18,18 @@ layout(set = 0, binding = HT_BINDING_TREE_AVG_TEXELS) uniform samplerBuffer tree
 layout(set = 0, binding = HT_BINDING_TREE_MAX_TEXELS) uniform samplerBuffer treeMaxTexels;
 layout(set = 0, binding = HT_BINDING_HT_CENTERS_TEXELS) uniform samplerBuffer htCentersTexels;
 layout(set = 0, binding = HT_BINDING_HT_CONES_TEXELS) uniform samplerBuffer htConesTexels;
+layout(set = 0, binding = HT_BINDING_FRONTIER_CHROMA_TEXELS) uniform samplerBuffer frontierChromaTexels;
+layout(set = 0, binding = HT_BINDING_FRONTIER_CENTROID_TEXELS) uniform samplerBuffer frontierCentroidTexels;
+layout(set = 0, binding = HT_BINDING_FRONTIER_BINS_TEXELS) uniform usamplerBuffer frontierBinsTexels;
+
+// Element i of a texel view of vec3s or vec2s stored as floats.
+vec3 texelVec3(samplerBuffer b, uint i) {
+  int t = 3 * int(i);
+  return vec3(texelFetch(b, t).x, texelFetch(b, t + 1).x, texelFetch(b, t + 2).x);
+}
+vec2 texelVec2(samplerBuffer b, uint i) {
+  int t = 2 * int(i);
+  return vec2(texelFetch(b, t).x, texelFetch(b, t + 1).x);
+}
 
 #endif

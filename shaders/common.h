@@ -28,7 +28,10 @@
 #define HT_BINDING_TREE_MAX_TEXELS 7
 #define HT_BINDING_HT_CENTERS_TEXELS 8
 #define HT_BINDING_HT_CONES_TEXELS 9
-#define HT_BINDING_COUNT 10
+#define HT_BINDING_FRONTIER_CHROMA_TEXELS 10    // ht-frontier: FrontierColours::chroma
+#define HT_BINDING_FRONTIER_CENTROID_TEXELS 11  // ht-frontier: FrontierColours::centroid
+#define HT_BINDING_FRONTIER_BINS_TEXELS 12      // ht-frontier: colour bins, four per uint (R32_UINT)
+#define HT_BINDING_COUNT 13
 
 // Chunked arrays: element i lives in chunk i >> SHIFT at i & (2^SHIFT - 1).
 #define HT_MAX_CHUNKS 128

@@ -7,11 +7,7 @@
 #include "healpix.glsl"
 
 vec3 envRadiance(uint pixel) {
-  if (kTexels) {
-    int t = 3 * int(pixel);
-    return vec3(texelFetch(radianceTexels, t).x, texelFetch(radianceTexels, t + 1).x,
-                texelFetch(radianceTexels, t + 2).x);
-  }
+  if (kTexels) return texelVec3(radianceTexels, pixel);
   return scene.radiance[pixel >> HT_RADIANCE_CHUNK_SHIFT].v[pixel & ((1u << HT_RADIANCE_CHUNK_SHIFT) - 1u)];
 }
 float treeAvg(uint node) {

@@ -196,7 +196,8 @@ uint frontierNodeClass(uint level, uint node, uint caps, out float factor) {
 
 uint frontierColourBin(uint i) {
   if ((gFs.flags & HT_FRONTIER_COLOUR_ORDER) == 0u) return 0u;
-  return (gFs.bins.v[i >> 2] >> (8u * (i & 3u))) & 0xFFu;
+  uint word = kTexels ? texelFetch(frontierBinsTexels, int(i >> 2)).x : gFs.bins.v[i >> 2];
+  return (word >> (8u * (i & 3u))) & 0xFFu;
 }
 uint frontierFace(GpuFrontierNode nd) { return nd.node >> (2u * nd.level); }
 uint frontierSegment(GpuFrontierNode nd) {
@@ -216,6 +217,7 @@ hvec3 frontierLeafChroma(vec3 radiance) {
 vec3 frontierNodeChroma(uint level, uint node) {
   if (level >= ht.order) return vec3(frontierLeafChroma(envRadiance(node)));
   uint i = levelOffset(level) + node;
+  if (kTexels) return texelVec3(frontierChromaTexels, i);
   return gFs.chroma[i >> HT_HT_VEC3_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC3_CHUNK_SHIFT) - 1u)];
 }
 
@@ -223,6 +225,7 @@ vec3 frontierNodeChroma(uint level, uint node) {
 // centre.
 vec3 frontierFactorDirection(uint i) {
   if (i >= levelOffset(ht.order)) return htCenter(i);
+  if (kTexels) return texelVec3(frontierCentroidTexels, i);
   return gFs.centroids[i >> HT_HT_VEC3_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC3_CHUNK_SHIFT) - 1u)];
 }
 

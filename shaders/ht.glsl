@@ -50,18 +50,11 @@ float htTreeMax(uint i) {
   return scene.treeMax[i >> HT_TREE_CHUNK_SHIFT].v[i & ((1u << HT_TREE_CHUNK_SHIFT) - 1u)];
 }
 vec3 htCenter(uint i) {
-  if (kTexels) {
-    int t = 3 * int(i);
-    return vec3(texelFetch(htCentersTexels, t).x, texelFetch(htCentersTexels, t + 1).x,
-                texelFetch(htCentersTexels, t + 2).x);
-  }
+  if (kTexels) return texelVec3(htCentersTexels, i);
   return scene.htCenters[i >> HT_HT_VEC3_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC3_CHUNK_SHIFT) - 1u)];
 }
 vec2 htCosSinRadius(uint i) {
-  if (kTexels) {
-    int t = 2 * int(i);
-    return vec2(texelFetch(htConesTexels, t).x, texelFetch(htConesTexels, t + 1).x);
-  }
+  if (kTexels) return texelVec2(htConesTexels, i);
   return scene.htCosSinRadius[i >> HT_HT_VEC2_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC2_CHUNK_SHIFT) - 1u)];
 }
 

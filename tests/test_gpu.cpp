@@ -155,7 +155,10 @@ TEST(GpuShaders, InterfaceMatchesCommonHeader) {
         case HT_BINDING_TREE_AVG_TEXELS:
         case HT_BINDING_TREE_MAX_TEXELS:
         case HT_BINDING_HT_CENTERS_TEXELS:
-        case HT_BINDING_HT_CONES_TEXELS: EXPECT_EQ(b.kind, vk::BindingKind::UniformTexel); break;
+        case HT_BINDING_HT_CONES_TEXELS:
+        case HT_BINDING_FRONTIER_CHROMA_TEXELS:
+        case HT_BINDING_FRONTIER_CENTROID_TEXELS:
+        case HT_BINDING_FRONTIER_BINS_TEXELS: EXPECT_EQ(b.kind, vk::BindingKind::UniformTexel); break;
         default: ADD_FAILURE() << "unexpected binding " << b.binding;
       }
     }

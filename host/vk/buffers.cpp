@@ -97,6 +97,7 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
     buffer_ = std::exchange(o.buffer_, VK_NULL_HANDLE);
     memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
     view_ = std::exchange(o.view_, VK_NULL_HANDLE);
+    viewFormat_ = o.viewFormat_;
     size_ = std::exchange(o.size_, 0);
     address_ = std::exchange(o.address_, 0);
     mapped_ = std::exchange(o.mapped_, nullptr);
@@ -118,12 +119,13 @@ void Buffer::release() {
   ctx_ = nullptr;
 }
 
-VkBufferView Buffer::floatView() {
-  if (view_) return view_;
-  if (!ctx_ || size_ < sizeof(float)) throw Error("internal: a texel view of an empty buffer");
+VkBufferView Buffer::texelView(VkFormat format) {
+  if (view_ && format == viewFormat_) return view_;
+  if (view_ || !ctx_ || size_ < sizeof(float)) throw Error("internal: a texel view of an empty buffer or of two formats");
+  viewFormat_ = format;
   VkBufferViewCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
   info.buffer = buffer_;
-  info.format = VK_FORMAT_R32_SFLOAT;
+  info.format = format;
   info.offset = 0;
   info.range = std::min<VkDeviceSize>(size_ / sizeof(float), ctx_->info.maxTexelBufferElements) * sizeof(float);
   check(ctx_->fn.vkCreateBufferView(ctx_->device, &info, nullptr, &view_), "vkCreateBufferView");

@@ -31,9 +31,10 @@ class Buffer {
   VkDeviceSize size() const { return size_; }
   VkDeviceAddress address() const { return address_; }
   void* mapped() const { return mapped_; }
-  // The buffer's first floats (as many as a texel buffer view may hold) as a
-  // uniform texel buffer of format R32_SFLOAT, made at the first call.
-  VkBufferView floatView();
+  // The buffer's first 32-bit words (as many as a texel buffer view may
+  // hold) as a uniform texel buffer of `format` (R32_SFLOAT or R32_UINT),
+  // made at the first call.
+  VkBufferView texelView(VkFormat format);
 
   // Copies `bytes` from `data` into the start of the buffer (DeviceLocal or Upload).
   void upload(const void* data, size_t bytes);
@@ -45,6 +46,7 @@ class Buffer {
   VkBuffer buffer_ = VK_NULL_HANDLE;
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
   VkBufferView view_ = VK_NULL_HANDLE;
+  VkFormat viewFormat_ = VK_FORMAT_UNDEFINED;
   VkDeviceSize size_ = 0;
   VkDeviceAddress address_ = 0;
   void* mapped_ = nullptr;
