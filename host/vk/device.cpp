@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <string>
+#include <thread>
 
 #include <fmt/format.h>
 
@@ -68,6 +71,13 @@ VkDebugUtilsMessengerCreateInfoEXT messengerInfo(ValidationLog* counters) {
 // failures: no loader, and no driver (VK_ERROR_INCOMPATIBLE_DRIVER, also what
 // a wrong VK_DRIVER_FILES gives).
 VkInstance createInstance(bool validation, ValidationLog* counters) {
+  // lavapipe hands each of its threads one run of a dispatch's workgroups,
+  // so the slowest run sets the dispatch's time; with twice as many threads
+  // as cores the system evens the runs out (ht-frontier on 2 cores: 1.02 s
+  // to 0.73 s, docs/ht.md). Read when the driver loads; a value set by the
+  // user is kept, and other drivers ignore it.
+  const unsigned threads = std::clamp(2 * std::thread::hardware_concurrency(), 2u, 32u);
+  setenv("LP_NUM_THREADS", std::to_string(threads).c_str(), 0);
   if (volkInitialize() != VK_SUCCESS)
     throw Error("no Vulkan loader: libvulkan.so.1 not found (Debian: apt-get install libvulkan1 mesa-vulkan-drivers)");
   const uint32_t loaderVersion = volkGetInstanceVersion();
