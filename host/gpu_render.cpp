@@ -213,14 +213,18 @@ struct GpuRenderer::Impl {
   bool hasScene = false;
   std::vector<vk::Buffer> chunks;
   vk::Buffer sceneBuffer, materials, spheres, planes;
-  vk::Buffer placeholder, placeholderUint;  // one float, one uint
-  // Per texel binding, the buffer (first chunk) it views; null: none.
-  std::map<uint32_t, vk::Buffer*> texelBuffers{{HT_BINDING_RADIANCE_TEXELS, nullptr}, {HT_BINDING_TREE_AVG_TEXELS, nullptr},
-                                               {HT_BINDING_TREE_MAX_TEXELS, nullptr}, {HT_BINDING_HT_CENTERS_TEXELS, nullptr},
-                                               {HT_BINDING_HT_CONES_TEXELS, nullptr},
-                                               {HT_BINDING_FRONTIER_CHROMA_TEXELS, nullptr},
-                                               {HT_BINDING_FRONTIER_CENTROID_TEXELS, nullptr},
-                                               {HT_BINDING_FRONTIER_BINS_TEXELS, nullptr}};
+  // Per texel binding, its format and the buffer (first chunk) it views;
+  // null: none yet. A binding without one views a placeholder of one word.
+  struct TexelBinding {
+    VkFormat format;
+    vk::Buffer* buffer = nullptr;
+  };
+  std::map<uint32_t, TexelBinding> texelBuffers{
+      {HT_BINDING_RADIANCE_TEXELS, {VK_FORMAT_R32_SFLOAT}},        {HT_BINDING_TREE_AVG_TEXELS, {VK_FORMAT_R32_SFLOAT}},
+      {HT_BINDING_TREE_MAX_TEXELS, {VK_FORMAT_R32_SFLOAT}},        {HT_BINDING_HT_CENTERS_TEXELS, {VK_FORMAT_R32_SFLOAT}},
+      {HT_BINDING_HT_CONES_TEXELS, {VK_FORMAT_R32_SFLOAT}},        {HT_BINDING_FRONTIER_CHROMA_TEXELS, {VK_FORMAT_R32_SFLOAT}},
+      {HT_BINDING_FRONTIER_CENTROID_TEXELS, {VK_FORMAT_R32_SFLOAT}}, {HT_BINDING_FRONTIER_BINS_TEXELS, {VK_FORMAT_R32_UINT}}};
+  std::map<VkFormat, vk::Buffer> placeholders;
   // Per tile.
   vk::Buffer pixels;
   vk::Buffer pixelState;   // GpuPixelState per tile pixel
@@ -303,17 +307,20 @@ struct GpuRenderer::Impl {
     if (hasScene) bindScene();
     if (pixels.size() > 0) pipeline->setBuffer(HT_BINDING_PIXELS, pixels);
   }
-  // The scene's buffers and texel views, with `placeholder` where an array is absent.
+  // The scene's buffers and texel views (placeholders without kTexels or
+  // where an array is not uploaded).
   void bindScene() {
     pipeline->setBuffer(HT_BINDING_SCENE, sceneBuffer);
     pipeline->setBuffer(HT_BINDING_MATERIALS, materials);
     pipeline->setBuffer(HT_BINDING_SPHERES, spheres);
     pipeline->setBuffer(HT_BINDING_PLANES, planes);
-    for (auto [binding, buffer] : texelBuffers) {
-      const VkFormat format = binding == HT_BINDING_FRONTIER_BINS_TEXELS ? VK_FORMAT_R32_UINT : VK_FORMAT_R32_SFLOAT;
-      pipeline->setTexelBuffer(binding, (texels && buffer ? buffer : format == VK_FORMAT_R32_UINT ? &placeholderUint
-                                                                                                   : &placeholder)
-                                            ->texelView(format));
+    for (auto& [binding, t] : texelBuffers) {
+      vk::Buffer* buffer = texels ? t.buffer : nullptr;
+      if (!buffer) {
+        buffer = &placeholders[t.format];
+        if (!buffer->handle()) *buffer = vk::Buffer(ctx, 4, vk::MemoryUse::DeviceLocal);
+      }
+      pipeline->setTexelBuffer(binding, buffer->texelView(t.format));
     }
   }
   ~Impl() {
@@ -357,12 +364,10 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.texels = m.texelViews && pixelCount <= kRadianceChunkElements && 3 * pixelCount <= maxTexels &&
              nodes <= kTreeChunkElements && nodes <= (uint64_t(1) << HT_HT_VEC3_CHUNK_SHIFT) &&
              nodes <= (uint64_t(1) << HT_HT_VEC2_CHUNK_SHIFT) && 3 * nodes <= maxTexels;
-  if (!m.placeholder.handle()) m.placeholder = vk::Buffer(ctx, sizeof(float), vk::MemoryUse::DeviceLocal);
-  if (!m.placeholderUint.handle()) m.placeholderUint = vk::Buffer(ctx, sizeof(uint32_t), vk::MemoryUse::DeviceLocal);
-  for (auto& [binding, buffer] : m.texelBuffers) buffer = nullptr;
-  m.texelBuffers[HT_BINDING_RADIANCE_TEXELS] = &m.chunks[first[0]];
-  m.texelBuffers[HT_BINDING_TREE_AVG_TEXELS] = &m.chunks[first[1]];
-  m.texelBuffers[HT_BINDING_TREE_MAX_TEXELS] = &m.chunks[first[2]];
+  for (auto& [binding, t] : m.texelBuffers) t.buffer = nullptr;
+  m.texelBuffers[HT_BINDING_RADIANCE_TEXELS].buffer = &m.chunks[first[0]];
+  m.texelBuffers[HT_BINDING_TREE_AVG_TEXELS].buffer = &m.chunks[first[1]];
+  m.texelBuffers[HT_BINDING_TREE_MAX_TEXELS].buffer = &m.chunks[first[2]];
 
   // The camera basis exactly as cameraRay (host/scene.cpp) computes it.
   const Camera& c = scene.camera;
@@ -437,8 +442,8 @@ void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables
       const size_t cones = geometryBuffers.size();
       uploadChunked(ctx, g.cosSinRadius.data(), g.cosSinRadius.size(), sizeof(glm::vec2),
                     uint64_t(1) << HT_HT_VEC2_CHUNK_SHIFT, geometryBuffers, scene.htCosSinRadius, "HT node radii");
-      texelBuffers[HT_BINDING_HT_CENTERS_TEXELS] = &geometryBuffers[0];
-      texelBuffers[HT_BINDING_HT_CONES_TEXELS] = &geometryBuffers[cones];
+      texelBuffers[HT_BINDING_HT_CENTERS_TEXELS].buffer = &geometryBuffers[0];
+      texelBuffers[HT_BINDING_HT_CONES_TEXELS].buffer = &geometryBuffers[cones];
       static_assert(sizeof(scene.htLevelRadius) == sizeof(g.levelRadius));
       std::copy(g.levelRadius.begin(), g.levelRadius.end(), scene.htLevelRadius);
       geometry = t.htGeometry;
@@ -559,10 +564,9 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
     upload(colours.chroma, frontierChromaBuffers, frontierChroma, "ht-frontier chroma");
     upload(colours.centroid, frontierCentroidBuffers, frontierCentroid, "ht-frontier centroids");
     frontierColours = t.frontierColours;
-    texelBuffers[HT_BINDING_FRONTIER_CHROMA_TEXELS] = &frontierChromaBuffers[0];
-    texelBuffers[HT_BINDING_FRONTIER_CENTROID_TEXELS] = &frontierCentroidBuffers[0];
-    texelBuffers[HT_BINDING_FRONTIER_BINS_TEXELS] = &frontierBinsBuffer;
-    bindScene();
+    texelBuffers[HT_BINDING_FRONTIER_CHROMA_TEXELS].buffer = &frontierChromaBuffers[0];
+    texelBuffers[HT_BINDING_FRONTIER_CENTROID_TEXELS].buffer = &frontierCentroidBuffers[0];
+    texelBuffers[HT_BINDING_FRONTIER_BINS_TEXELS].buffer = &frontierBinsBuffer;
   }
   GpuFrontierScene& f = frontier;
   f = GpuFrontierScene{};

@@ -20,12 +20,12 @@ namespace ht::vk {
 // Reads a SPIR-V file; a missing or malformed file is a one-line ht::Error.
 std::vector<uint32_t> loadSpirv(const std::string& path);
 
-// What a compute shader declares (set 0 storage buffers and push constants).
 // How a shader reads a binding: storage buffer, uniform block (small data
 // read by all lanes alike), or uniform texel buffer (large read-only arrays
 // gathered lane by lane).
 enum class BindingKind { Storage, Uniform, UniformTexel };
 
+// What a compute shader declares (set 0 buffers and texel buffers, push constants).
 struct SpirvInterface {
   struct Binding {
     uint32_t set = 0, binding = 0;
