@@ -335,6 +335,7 @@ GpuRenderer::~GpuRenderer() = default;
 const GpuDeviceInfo& GpuRenderer::device() const { return impl_->info; }
 bool GpuRenderer::float64() const { return impl_->ctx.float64; }
 std::string GpuRenderer::shaderName() const { return impl_->shaderName; }
+bool GpuRenderer::texelViews() const { return impl_->pipelineTexels; }
 const vk::ValidationLog& GpuRenderer::validationLog() const { return impl_->ctx.validationLog(); }
 
 void GpuRenderer::setScene(const Scene& scene) {

@@ -104,6 +104,7 @@ class GpuRenderer {
   const GpuDeviceInfo& device() const;
   bool float64() const;  // the device has shaderFloat64 (enabled unless the precision is fp32)
   std::string shaderName() const;  // the SPIR-V file of the last render
+  bool texelViews() const;         // the last render read the large arrays through texel views
   const vk::ValidationLog& validationLog() const;
 
  private:

@@ -203,7 +203,8 @@ nlohmann::json renderStats(const RenderOptions& o, const Scene& scene, const Ren
       {"seed", rs.seed},
       {"device", gpu ? nlohmann::json{{"type", "gpu"}, {"name", gpu->device().name}, {"vulkan_type", gpu->device().type},
                                         {"driver", gpu->device().driver}, {"vulkan", gpu->device().apiVersion},
-                                        {"shader", gpu->shaderName()}, {"precision", o.gpuPrecision}}
+                                        {"shader", gpu->shaderName()}, {"precision", o.gpuPrecision},
+                                        {"texel_views", gpu->texelViews()}}
                      : nlohmann::json{{"type", "cpu"}, {"name", cpuName()}, {"threads", tbb::info::default_concurrency()}}},
       {"environment",
        {{"file", scene.environmentDesc.file},

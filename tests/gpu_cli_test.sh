@@ -51,6 +51,7 @@ s = json.load(open(sys.argv[1]))
 d = s["device"]
 assert d["type"] == "gpu" and d["name"] and d["vulkan"] and d["shader"] == "baselines.fp64.spv", d
 assert d["precision"] == "fp64", d
+assert d["texel_views"] is True, d  # the scene's map fits its texel views
 assert s["method"] == sys.argv[2] and s["mean_samples_per_pixel"] == (8 if sys.argv[2] == "mis" else 4), s
 sec = s["seconds"]
 assert all(k in sec for k in ("parse", "environment", "render", "write", "device", "upload", "gpu")), sec

@@ -739,6 +739,8 @@ TEST(GpuRenderTiles, TexelViewsAndDeviceAddressesGiveTheSameImage) {
     SCOPED_TRACE(methodName(m));
     const RenderSettings rs = settings(m, 8, 7, 40, 20);
     const GpuRenderResult ga = a.render(rs), gb = b.render(rs);
+    EXPECT_TRUE(a.texelViews());
+    EXPECT_FALSE(b.texelViews());
     EXPECT_GT(ga.result.shadedPixels, 0u);
     EXPECT_EQ(ga.result.counters.directions, gb.result.counters.directions);
     EXPECT_EQ(ga.result.counters.htNodes, gb.result.counters.htNodes);
