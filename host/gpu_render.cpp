@@ -520,6 +520,8 @@ void layOutFrontierScratch(uint32_t real, GpuFrontierScene& f) {
   f.offCandidateMass = place(candidates * real);
   f.offHeapKey = place(candidates * real);
   f.offHeapIndex = place(std::max<uint32_t>(candidates, HT_FRONTIER_SEGMENTS) * 4);  // also the counting sort's
+  f.offCandidateKappa = place(candidates * 12);
+  f.offKappa = place(f.capacity * 12);
   f.offPointMass = place(f.sharedCapacity * real);
   f.offPointClass = place(f.sharedCapacity * 4);
   f.offPointCum = place(f.sharedCapacity * real);
@@ -601,7 +603,7 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
     for (const FrontierNode& nd : table.nodes) {
       nodes.push_back({uint32_t(nd.level), uint32_t(nd.node), nd.brdfBound, nd.brdfCentre, uint32_t(nd.visibility), 0u});
       mass.push_back(nd.mass);
-      colour.push_back({nd.chroma, nd.descentChroma});
+      colour.push_back({nd.chroma, nd.descentChroma, nd.kappa.x});
     }
     for (const glm::dvec4& c : table.faceColour) faceColour.insert(faceColour.end(), {c.x, c.y, c.z, c.w});
     order.insert(order.end(), table.cdfOrder.begin(), table.cdfOrder.end());

@@ -146,6 +146,10 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt, 
   if (options.budgetRefinements >= 0) estimateBudget();
 }
 
+glm::vec3 HtPoint::brdfColour(const glm::vec3& dirHp) const {
+  return evalBsdf(material, woLocal, frame.toLocal(dirHp));
+}
+
 float HtPoint::brdfValue(const glm::vec3& dirHp) const {
   if (table) return table->average(thetaO, {glm::dot(dirHp, tableX), glm::dot(dirHp, tableY), glm::dot(dirHp, n)});
   return luminance(evalBsdf(material, woLocal, frame.toLocal(dirHp)));

@@ -186,6 +186,7 @@ class HtPoint {
   // with tabulated bounds).
   float brdfBound(uint64_t i, float& diffuse) const;
   float brdfValue(const glm::vec3& dirHp) const;
+  glm::vec3 brdfColour(const glm::vec3& dirHp) const;  // f cos in colour (no table)
   // 0: the cone is fully blocked, 1: fully free, 2: partly covered.
   int visibilityClass(const glm::vec3& axis, int level) const;
   float visibleFraction(uint64_t leaf) const;

@@ -35,7 +35,8 @@ glm::dvec3 colourMeanOf(const FrontierNode& nd, int cls) {
 void sumFaceColours(FrontierTable& table) {
   table.faceColour.fill(glm::dvec4(0.0));
   for (const FrontierNode& nd : table.nodes)
-    table.faceColour[size_t(nd.node >> (2 * nd.level))] += nd.mass * glm::dvec4(colourMeanOf(nd, nd.visibility), 1.0);
+    table.faceColour[size_t(nd.node >> (2 * nd.level))] +=
+        nd.mass * glm::dvec4(glm::dvec3(nd.kappa) * colourMeanOf(nd, nd.visibility), 1.0);
 }
 
 // Frontier::children's BRDF factors on the product levels: each child's
@@ -105,11 +106,12 @@ void refine(const Environment& env, const std::vector<glm::vec3>& centres, const
     const uint64_t i = MaxAvgTree::levelOffset(level) + node;
     const float avg = env.tree.avgv[i];
     float bound, c, centre;
-    if (!(avg > 0.0f) || !factor(level, i, bound, c, centre, visibility)) return;
+    glm::vec3 kappa(1.0f);
+    if (!(avg > 0.0f) || !factor(level, i, bound, c, centre, visibility, kappa)) return;
     const double energy = double(avg) * healpix::pixelSolidAngle(level);
     const glm::vec3 chroma = withChroma ? nodeChroma(env, colours, level, node) : glm::vec3(0.0f);
     const FrontierNode nd{level,  node,   node << (2 * (order - level)), centres[i], energy * double(c), bound, centre,
-                          visibility, chroma, chroma, level >= productLevel};
+                          visibility, chroma, chroma, level >= productLevel, kappa};
     candidates.push_back({nd, false});
     // The variance a node adds grows with the spread of the factor over it.
     const double spread = std::max(0.0, double(bound) - double(c));
@@ -309,13 +311,16 @@ glm::vec3 frontierSurfaceNormal(const Environment& env, const glm::vec3& normal)
 
 void buildSharedFrontierTable(const Environment& env, const HtGeometry& g, const glm::vec3& n,
                               const FrontierOptions& options, const FrontierColours& colours, FrontierTable& table) {
-  // Albedo and 1/pi scale every node alike: the shape is cos+ alone.
-  auto factor = [&](int, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
+  // Albedo and 1/pi scale every node alike: the shape is cos+ alone. Where
+  // the floor lifts a node's factor above its centre value, its directions'
+  // f / p is centre / c of the rest's (the control variate's kappa).
+  auto factor = [&](int, uint64_t i, float& bound, float& c, float& centre, int& visibility, glm::vec3& kappa) {
     visibility = 1;
     bound = cosClosest(g.centers[i], n, g.cosSinRadius[i].x, g.cosSinRadius[i].y);
     if (!(bound > 0.0f)) return false;
     centre = std::max(glm::dot(frontierFactorDirection(colours, g, i), n), 0.0f);
     c = std::max(centre, options.brdfFloor * bound);
+    kappa = glm::vec3(centre / c);
     return true;
   };
   refine(env, g.centers, colours, options.colourOrder, true, options.productLevel, options.sharedRefinements,
@@ -491,7 +496,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
             nodeVisibilityUnder(faceCaps[f], g, nd.level, nd.node, nd.centre, options.minPartialVisibility, factor);
         mass_[k] = cls == 1 ? nd.mass : nd.mass * double(factor);
         class_[k] = uint8_t(cls);
-        colour += mass_[k] * glm::dvec4(colourMeanOf(nd, cls), 1.0);
+        colour += mass_[k] * glm::dvec4(glm::dvec3(nd.kappa) * colourMeanOf(nd, cls), 1.0);
       }
       faceColour[f] = colour;
       for (int bin = 0; bin < kFrontierColourBins; ++bin) {
@@ -506,7 +511,7 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
   } else {
     table_ = &own_;
     const float lobeFloor = frontierLobeFloor(point.material, point.geometry, options, productLevel_);
-    auto factor = [&](int level, uint64_t i, float& bound, float& c, float& centre, int& visibility) {
+    auto factor = [&](int level, uint64_t i, float& bound, float& c, float& centre, int& visibility, glm::vec3& kappa) {
       float diffuse;
       bound = point.brdfBound(i, diffuse);
       if (!(bound > 0.0f)) return false;
@@ -518,13 +523,17 @@ void Frontier::build(const HtPoint& point, const ShadingPoint& sp, const Frontie
                                             options.minPartialVisibility, vis);
         if (visibility == 0) return false;
       }
-      centre = point.brdfValue(frontierFactorDirection(colours, point.geometry, i));
+      // The control variate's kappa: a direction's f / p per unit of its
+      // light's chroma, the BRDF's colour read where its factor is.
+      const glm::vec3 f = point.brdfColour(frontierFactorDirection(colours, point.geometry, i));
+      centre = luminance(f);
       const float floor = options.brdfFloor * diffuse + lobeFloor * (bound - diffuse);
-      c = std::max(centre, floor) * vis;
+      const float top = std::max(centre, floor);
+      kappa = top > 0.0f ? f / top : glm::vec3(0.0f);
+      c = top * vis;
       return true;
     };
-    // The control variate takes a Lambert point's own table only.
-    colour_ = options.colourControl && lambert;
+    colour_ = options.colourControl;
     refine(point.env, point.geometry.centers, colours, options.colourOrder, colour_, productLevel_,
            frontierRefinements(options, n), options.coarseRatio, factor, own_);
     if (colour_) sumFaceColours(own_);
@@ -624,10 +633,13 @@ double Frontier::density(size_t k, uint64_t leaf) const {
 
 glm::dvec3 Frontier::colourOf(size_t k, uint64_t leaf) const {
   const FrontierNode& nd = table_->nodes[k];
-  return visibility(k) == 1 && nd.exactColour ? frontierLeafChroma(point_->env.radiance[leaf]) : glm::dvec3(nd.chroma);
+  return glm::dvec3(nd.kappa) *
+         (visibility(k) == 1 && nd.exactColour ? frontierLeafChroma(point_->env.radiance[leaf]) : glm::dvec3(nd.chroma));
 }
 
-glm::dvec3 Frontier::colourMean(size_t k) const { return colourMeanOf(table_->nodes[k], visibility(k)); }
+glm::dvec3 Frontier::colourMean(size_t k) const {
+  return glm::dvec3(table_->nodes[k].kappa) * colourMeanOf(table_->nodes[k], visibility(k));
+}
 
 double Frontier::pdf(uint64_t leaf) const {
   const size_t k = nodeOfLeaf(leaf);
@@ -766,18 +778,12 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
       u = (u - q) / (1.0 - q);
     }
   }
-  // The control variate's kappa M / n: where the table's shape is cos+, a
-  // table direction's f / p is about the albedo's colour x M x the
-  // direction's chroma (a shared table's mass leaves out albedo / pi, a
-  // Lambert point's own table holds the albedo's luminance).
+  // The control variate's M / n: a table direction's f / p is about
+  // M x kappa x its chroma (Frontier::colourOf), and a shared table's
+  // kappa leaves out the albedo / pi, which its mass does not hold.
   glm::dvec3 colourScale(0.0);
   if (frontier.colourControl()) {
-    if (frontier.shared()) {
-      colourScale = glm::dvec3(sh.material.diffuse) * double(kInvPi);
-    } else {
-      const float l = luminance(sh.material.diffuse);
-      if (l > 0.0f) colourScale = glm::dvec3(sh.material.diffuse) / double(l);
-    }
+    colourScale = frontier.shared() ? glm::dvec3(sh.material.diffuse) * double(kInvPi) : glm::dvec3(1.0);
     // With the mixture a table direction comes with probability wt.
     colourScale = colourScale * frontier.totalMass() / (double(n) * (q > 0.0 ? wt : 1.0));
   }

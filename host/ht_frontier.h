@@ -39,16 +39,18 @@
 // (frontierLobeCount), and the balance heuristic combines the two.
 //
 // The estimate is sum f(w) / (n_t p_t(w) + n_b p_b(w)) over all n directions,
-// plus a control variate on colour where the table's shape is cos+ (flat
-// surfaces, Lambert points). The density follows luminance, so each
+// plus a control variate on colour. The density follows luminance, so each
 // channel's f / p varies with the chroma (radiance / luminance) of the light
-// it hits. Each table direction adds kappa M / n x (mu - chroma): its chroma
-// (its leaf's where the node is free and its descent exact for colour,
-// else its node's), mu the mean of that chroma, which the table gives
-// exactly, M the point's total mass and kappa the albedo's colour per unit
-// of the mass (FrontierOptions::colourControl). Its mean is 0. A channel
-// the term would take below 0 is set to 0, which happens rarely and only
-// where the channel is dark (docs/ht.md).
+// it hits. Each table direction drawn in node k adds
+// M / n x (mu - kappa_k chroma): its chroma (its leaf's where the node is
+// free and its descent exact for colour, else its node's), M the point's
+// total mass, kappa_k the node's f / p per unit of chroma and of mass (the
+// BRDF's colour at the node's centroid over the node's factor c; on a
+// shared table, the albedo / pi x centre / c) and mu the mean of
+// kappa_k chroma, which the table gives exactly
+// (FrontierOptions::colourControl). Its mean is 0. A channel the term
+// would take below 0 is set to 0, which happens rarely and only where the
+// channel is dark (docs/ht.md).
 #pragma once
 
 #include <array>
@@ -165,6 +167,11 @@ struct FrontierNode {
   // levels, where it follows the average tree); else `chroma`.
   glm::vec3 descentChroma;
   bool exactColour;
+  // A direction's f / p per unit of its chroma and of the table's mass M
+  // where the node's factor holds: the BRDF's colour at the centroid over c
+  // in an own table; centre / c in a shared one (whose mass leaves out the
+  // albedo / pi).
+  glm::vec3 kappa{1.0f};
 };
 
 // Nodes sorted along the nested index, with their masses, and the order of
@@ -215,12 +222,12 @@ class Frontier {
   double pdf(uint64_t leaf) const;
 
   // The control variate on colour: a direction drawn in node k that
-  // reaches `leaf` has chroma colourOf(k, leaf) (its leaf's where the node
-  // is free and exactColour, else the node's), whose mean over the node's
-  // directions is colourMean(k) (descentChroma where it is free, else its
-  // chroma); `colourAverage` is the mass-weighted mean of the means.
-  // All three hold where `colourControl` (a shared table, or a Lambert
-  // point's own table, with FrontierOptions::colourControl).
+  // reaches `leaf` has kappa_k x its chroma, colourOf(k, leaf) (its leaf's
+  // chroma where the node is free and exactColour, else the node's), whose
+  // mean over the node's directions is colourMean(k) (kappa_k x
+  // descentChroma where it is free, else x its chroma); `colourAverage` is
+  // the mass-weighted mean of the means. All three hold where
+  // `colourControl` (FrontierOptions::colourControl).
   bool colourControl() const { return colour_; }
   glm::dvec3 colourOf(size_t k, uint64_t leaf) const;
   glm::dvec3 colourMean(size_t k) const;

@@ -155,6 +155,7 @@ layout(buffer_reference) buffer PixelStates;
 layout(buffer_reference) buffer HtPendingList;
 layout(buffer_reference) buffer FrontierSceneRef;
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierUints { uint v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierVec3s { vec3 v[]; };
 #if HT_FP64
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer FrontierReals { double v[]; };
 #else
@@ -336,10 +337,12 @@ struct GpuFrontierNode {
   uint visibility;   // 1 free, 2 partly covered
   uint link;         // while refining: the candidate's parent
 };
-// A shared table's node's FrontierNode::chroma and descentChroma.
+// A shared table's node's FrontierNode::chroma, descentChroma and kappa
+// (grey on a shared table).
 struct GpuFrontierColour {
   vec3 chroma;
   vec3 descent;
+  float kappa;
 };
 struct GpuFrontierHeader {
   uint segStart[HT_FRONTIER_SEGMENTS + 1];  // first CDF position of each segment, and the end
@@ -394,6 +397,7 @@ struct GpuFrontierScene {
   float capSinMargin;
   uint offHeader, offNodes, offOrder, offMass, offCum;
   uint offCandidates, offCandidateMass, offHeapKey, offHeapIndex;
+  uint offCandidateKappa, offKappa;  // FrontierNode::kappa (vec3) of the candidates and of the table's nodes
   uint offPointMass, offPointClass, offPointCum, offSegCum;
   uint offColourAverage;  // Frontier::colourAverage: three reals
   uint pixelBytes;
@@ -466,11 +470,11 @@ struct GpuPush {
 static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 128);
 static_assert(sizeof(GpuFrontierNode) == 24 && sizeof(GpuFrontierHeader) == 4 * (HT_FRONTIER_SEGMENTS + 20) &&
               sizeof(GpuFrontierPoint) == 32 && offsetof(GpuFrontierPoint, total) == 16 &&
-              sizeof(GpuFrontierColour) == 24);
+              sizeof(GpuFrontierColour) == 28);
 static_assert(offsetof(GpuFrontierScene, sharedNormal) == 128 &&
               offsetof(GpuFrontierScene, levelCosRadius) == 128 + 12 * HT_FRONTIER_MAX_SHARED &&
               offsetof(GpuFrontierScene, sharedCount) == 128 + 12 * HT_FRONTIER_MAX_SHARED + 256 &&
-              sizeof(GpuFrontierScene) == 128 + 12 * HT_FRONTIER_MAX_SHARED + 256 + 4 * 28);
+              sizeof(GpuFrontierScene) == 128 + 12 * HT_FRONTIER_MAX_SHARED + 256 + 4 * 30);
 static_assert(offsetof(GpuScene, htBrdfTables) - offsetof(GpuScene, camPosition) == 112 &&
               offsetof(GpuScene, frontier) - offsetof(GpuScene, camPosition) == 120);
 static_assert(offsetof(GpuScene, tsisSat) - offsetof(GpuScene, camPosition) == 96 &&

@@ -34,6 +34,7 @@ FrontierUints gFrHeader;
 FrontierNodes gFrNodes;
 FrontierUints gFrOrder;
 FrontierReals gFrMass, gFrCum;
+FrontierVec3s gFrKappa;  // an own table's FrontierNode::kappa (a shared one's are in gFrColour)
 uint gFrStride;
 // The point's masses, classes and prefix sums over a shared table on the
 // faces in gFrTouched, and the mass of the segments before each.
@@ -69,6 +70,7 @@ uint64_t frontierArray(uint offset, uint size) {
 FrontierReals frontierReals(uint offset) { return FrontierReals(frontierArray(offset, kFrontierRealBytes)); }
 FrontierUints frontierUints(uint offset) { return FrontierUints(frontierArray(offset, 4u)); }
 FrontierNodes frontierNodes(uint offset) { return FrontierNodes(frontierArray(offset, 24u)); }
+FrontierVec3s frontierVec3s(uint offset) { return FrontierVec3s(frontierArray(offset, 12u)); }
 FrontierPoints frontierPoint() { return FrontierPoints(gFrBase + uint64_t(gFrSlot) * 32ul); }
 
 // The table's header words (GpuFrontierHeader, segStart first) and arrays,
@@ -238,14 +240,21 @@ vec3 frontierChroma(uint k) {
   return frontierNodeChroma(nd.level, nd.node);
 }
 vec3 frontierDescentChroma(uint k) { return gFrShared ? gFrColour.v[k].descent : frontierChroma(k); }
+vec3 frontierKappa(uint k) { return gFrShared ? vec3(gFrColour.v[k].kappa) : gFrKappa.v[k * gFrStride]; }
 
 // colourMeanOf: the mean chroma of the directions node k of class cls draws.
 vec3 frontierColourMean(uint k, uint cls) { return cls == 1u ? frontierDescentChroma(k) : frontierChroma(k); }
 
-// sumFaceColours' terms: mass x the mean chroma, added to `acc`.
-hvec3 frontierAddColour(hvec3 acc, hreal mass, vec3 mean) {
-  return hvec3(addF(acc.x, mulF(mass, hreal(mean.x))), addF(acc.y, mulF(mass, hreal(mean.y))),
-               addF(acc.z, mulF(mass, hreal(mean.z))));
+// kappa x a chroma (Frontier::colourOf, colourMean), in the reals' precision.
+hvec3 frontierTimesKappa(vec3 kappa, hvec3 chroma) {
+  return hvec3(mulF(hreal(kappa.x), chroma.x), mulF(hreal(kappa.y), chroma.y), mulF(hreal(kappa.z), chroma.z));
+}
+
+// sumFaceColours' terms: mass x kappa x the mean chroma of node k of class
+// cls, added to `acc`.
+hvec3 frontierAddColour(hvec3 acc, hreal mass, uint k, uint cls) {
+  hvec3 mean = frontierTimesKappa(frontierKappa(k), hvec3(frontierColourMean(k, cls)));
+  return hvec3(addF(acc.x, mulF(mass, mean.x)), addF(acc.y, mulF(mass, mean.y)), addF(acc.z, mulF(mass, mean.z)));
 }
 hvec3 frontierAdd3(hvec3 a, hvec3 b) { return hvec3(addF(a.x, b.x), addF(a.y, b.y), addF(a.z, b.z)); }
 
@@ -255,6 +264,7 @@ hvec3 frontierAdd3(hvec3 a, hvec3 b) { return hvec3(addF(a.x, b.x), addF(a.y, b.
 // its class: bit 3 split, bits 4-6 its children's count, bits 8- the first.
 FrontierNodes gFrCand;
 FrontierReals gFrCandMass, gFrHeapKey;
+FrontierVec3s gFrCandKappa;
 FrontierUints gFrHeapIndex;
 uint gFrCandCount, gFrHeapSize;
 float gFrLobeFloor;      // frontierLobeFloor of the point's material
@@ -317,15 +327,20 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
     cls = frontierNodeClass(level, node, gFrCaps, vis);
     if (cls == 0u) return;
   }
-  float value = htBrdfValue(frontierFactorDirection(i));
+  // The control variate's kappa: the BRDF's colour where its factor is read.
+  vec3 f = htBrdfColour(frontierFactorDirection(i));
+  float value = luminance(f);
   precise float floor = gFs.brdfFloor * diffuse + gFrLobeFloor * (bound - diffuse);
-  precise float c = max(value, floor) * vis;
+  float top = max(value, floor);
+  precise vec3 kappa = top > 0.0 ? vec3(f.x / top, f.y / top, f.z / top) : vec3(0.0);
+  precise float c = top * vis;
   precise hreal energy = hreal(avg) * htPixelSolidAngle(level);
   precise hreal spread = max(hreal(0.0), hreal(bound) - hreal(c));
   precise hreal priority = level < ht.order ? energy * spread * spread / hreal(c) : hreal(0.0);
   uint k = gFrCandCount++;
   gFrCand.v[(k) * gFrPixels] = GpuFrontierNode(level, node, bound, value, cls, parent);
   gFrCandMass.v[(k) * gFrPixels] = mulF(energy, hreal(c));
+  gFrCandKappa.v[(k) * gFrPixels] = kappa;
   if (priority > 0.0) frontierHeapPush(priority, k);
 }
 
@@ -378,6 +393,7 @@ void frontierUseOwn() {
   gFrOrder = frontierUints(gFs.offOrder);
   gFrMass = frontierReals(gFs.offMass);
   gFrCum = frontierReals(gFs.offCum);
+  gFrKappa = frontierVec3s(gFs.offKappa);
 }
 
 // lobeResolved (ht_frontier.cpp).
@@ -411,6 +427,7 @@ void frontierRefine(uint n) {
   gFrLobeFloor = frontierLobeFloor();
   gFrCand = frontierNodes(gFs.offCandidates);
   gFrCandMass = frontierReals(gFs.offCandidateMass);
+  gFrCandKappa = frontierVec3s(gFs.offCandidateKappa);
   gFrHeapKey = frontierReals(gFs.offHeapKey);
   gFrHeapIndex = frontierUints(gFs.offHeapIndex);
   gFrCandCount = 0u;
@@ -439,6 +456,7 @@ void frontierRefine(uint n) {
     if ((c.visibility & 8u) == 0u) {
       gFrNodes.v[(count) * gFrStride] = GpuFrontierNode(c.level, c.node, c.brdfBound, c.brdfCentre, c.visibility & 3u, 0u);
       gFrMass.v[(count) * gFrStride] = gFrCandMass.v[(i) * gFrPixels];
+      gFrKappa.v[(count) * gFrStride] = gFrCandKappa.v[(i) * gFrPixels];
       ++count;
     }
     for (;;) {
@@ -477,7 +495,7 @@ void frontierUseShared(uint t) {
   gFrOrder = FrontierUints(uint64_t(s.f.sharedOrder) + uint64_t(nodeBase) * 4ul);
   gFrMass = FrontierReals(uint64_t(s.f.sharedMass) + uint64_t(nodeBase) * uint64_t(kFrontierRealBytes));
   gFrCum = FrontierReals(uint64_t(s.f.sharedCum) + uint64_t(cumBase) * uint64_t(kFrontierRealBytes));
-  gFrColour = FrontierColourNodes(uint64_t(s.f.sharedColour) + uint64_t(nodeBase) * 24ul);
+  gFrColour = FrontierColourNodes(uint64_t(s.f.sharedColour) + uint64_t(nodeBase) * 28ul);
   gFrShared = true;
 }
 
@@ -532,7 +550,7 @@ hvec3 frontierApplyCaps(uint table, out hreal colourMass) {
       hreal pointMass = cls == 1u ? mass : mulF(mass, hreal(factor));
       gFrPointMass.v[(k) * gFrPixels] = pointMass;
       gFrPointClass.v[(k) * gFrPixels] = cls;
-      colour = frontierAddColour(colour, pointMass, frontierColourMean(k, cls));
+      colour = frontierAddColour(colour, pointMass, k, cls);
       faceMass = addF(faceMass, pointMass);
     }
     colourSum = frontierAdd3(colourSum, colour);
@@ -718,11 +736,12 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf, out ui
   return node;
 }
 
-// Frontier::colourOf: the chroma of a direction drawn in node k that
-// reached `leaf`.
+// Frontier::colourOf: kappa x the chroma of a direction drawn in node k
+// that reached `leaf`.
 hvec3 frontierColourOf(uint k, uint leaf) {
   bool exact = gFrShared || tableNode(k).level >= gFrProductLevel;
-  return frontierVisibility(k) == 1u && exact ? frontierLeafChroma(envRadiance(leaf)) : hvec3(frontierChroma(k));
+  hvec3 chroma = frontierVisibility(k) == 1u && exact ? frontierLeafChroma(envRadiance(leaf)) : hvec3(frontierChroma(k));
+  return frontierTimesKappa(frontierKappa(k), chroma);
 }
 
 // An own table's sums of sumFaceColours, face by face.
@@ -733,7 +752,7 @@ hvec3 frontierOwnColourSum(out hreal colourMass) {
     hvec3 colour = hvec3(0.0);
     hreal mass = 0.0;
     for (uint k = faceStart(f); k < faceStart(f + 1u); ++k) {
-      colour = frontierAddColour(colour, tableMass(k), frontierColourMean(k, tableNode(k).visibility));
+      colour = frontierAddColour(colour, tableMass(k), k, tableNode(k).visibility);
       mass = addF(mass, tableMass(k));
     }
     colourSum = frontierAdd3(colourSum, colour);
@@ -814,9 +833,7 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
   } else {
     frontierRefine(n);
     htNodes += 12u + 4u * tableWord(kFrontierSplits);
-    // The control variate takes a Lambert point's own table only.
-    if ((gFs.flags & HT_FRONTIER_COLOUR_CONTROL) != 0u && material.type == HT_MATERIAL_LAMBERT)
-      colourSum = frontierOwnColourSum(colourMass);
+    if ((gFs.flags & HT_FRONTIER_COLOUR_CONTROL) != 0u) colourSum = frontierOwnColourSum(colourMass);
   }
   frontierSegments();
   if (!(gFrTotal > 0.0)) return false;
@@ -886,16 +903,13 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
       u = rest;
     }
   }
-  // The control variate's kappa M / n (estimateHtFrontier).
+  // The control variate's M / n, and a shared table's albedo / pi (estimateHtFrontier).
   hvec3 colourScale = hvec3(0.0);
   if ((gFs.flags & HT_FRONTIER_COLOUR_CONTROL) != 0u) {
     vec3 d = sh.material.diffuse;
-    if (pt.table != kFrontierNone) {
-      colourScale = hvec3(mulF(hreal(d.x), hreal(kInvPi)), mulF(hreal(d.y), hreal(kInvPi)), mulF(hreal(d.z), hreal(kInvPi)));
-    } else if (sh.material.type == HT_MATERIAL_LAMBERT) {
-      float l = luminance(d);
-      if (l > 0.0) colourScale = hvec3(divF(hreal(d.x), hreal(l)), divF(hreal(d.y), hreal(l)), divF(hreal(d.z), hreal(l)));
-    }
+    colourScale = pt.table != kFrontierNone
+                      ? hvec3(mulF(hreal(d.x), hreal(kInvPi)), mulF(hreal(d.y), hreal(kInvPi)), mulF(hreal(d.z), hreal(kInvPi)))
+                      : hvec3(1.0);
     // With the mixture a table direction comes with probability wt.
     hreal n = q > 0.0 ? mulF(hreal(pt.nt + pt.nb), wt) : hreal(pt.nt + pt.nb);
     colourScale = hvec3(divF(mulF(colourScale.x, gFrTotal), n), divF(mulF(colourScale.y, gFrTotal), n),

@@ -126,6 +126,9 @@ uint64_t htFaceDigits(uint seed) {
   return perm;
 }
 
+// HtPoint::brdfColour: f cos in colour (no tables).
+precise vec3 htBrdfColour(vec3 dirHp) { return evalBsdf(ht.material, ht.woLocal, toLocal(ht.frame, dirHp)); }
+
 precise float htBrdfValue(vec3 dirHp) {
   if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u)
     return htTableAverage(ht.table, vec3(dot3(dirHp, ht.table.x), dot3(dirHp, ht.table.y), dot3(dirHp, ht.n)));

@@ -481,10 +481,10 @@ TEST(Frontier, OneDirectionOnAGrazingGlossyPlane) {
   }
 }
 
-// The control variate on colour (at flat and Lambert points) has mean 0:
-// over the directions drawn in a node (their leaves' probabilities from
-// pdf), colourOf averages to colourMean, and colourAverage is the mean of
-// those over the nodes, by their probabilities. With the descent's product
+// The control variate on colour (at every point, glossy ones included) has
+// mean 0: over the directions drawn in a node (their leaves' probabilities
+// from pdf), colourOf averages to colourMean, and colourAverage is the mean
+// of those over the nodes, by their probabilities. With the descent's product
 // down to level 2, own tables have nodes exact for colour above the leaves,
 // and a shared table's means span three levels of its descent's choices;
 // below the map's leaves there is nothing to descend.
@@ -497,9 +497,7 @@ TEST(Frontier, ColourMeansAreExact) {
     for (const ShadingSetup& s : setups()) {
       PreparedPoint p;
       prepare(s, options, 16, p);
-      const bool lambert = s.scene.materials[0].type == MaterialType::Lambert;
-      EXPECT_EQ(p.frontier.colourControl(), p.frontier.shared() || lambert) << s.name;
-      if (!p.frontier.colourControl()) continue;
+      ASSERT_TRUE(p.frontier.colourControl()) << s.name;
       const Environment& env = s.scene.environment;
       const FrontierTable& t = p.frontier.table();
       glm::dvec3 weighted(0.0);
@@ -520,7 +518,7 @@ TEST(Frontier, ColourMeansAreExact) {
         for (int c = 0; c < 3; ++c)
           ASSERT_NEAR(mean[c], expected[c], 1e-5 * (1.0 + std::abs(expected[c])))
               << s.name << " product level " << productLevel << " node " << k << " level " << nd.level;
-        if (glm::length(expected - glm::dvec3(nd.chroma)) > 1e-3) ++descended;
+        if (glm::length(expected - glm::dvec3(nd.kappa) * glm::dvec3(nd.chroma)) > 1e-3) ++descended;
         weighted += pk * expected;
         all += pk;
         ++taking;
@@ -537,15 +535,19 @@ TEST(Frontier, ColourMeansAreExact) {
 }
 
 // The control variate lowers the colour noise of a shared table (a flat
-// Lambert point) and of an own table (a curved one) under the sunrise,
-// whose sun is orange and sky blue (next to occluders, visibility's noise
-// leaves it less to do): the variance summed over the channels,
-// each relative to its mean, from 3000 estimates of 16 directions with and
-// without it (the means: UnbiasedAgainstBruteForce, with it by default).
+// Lambert point), of an own table (a curved one) and of a glossy point's
+// own table (a red plastic, whose BRDF's colour changes from its diffuse
+// lobe to its white specular one) under the sunrise, whose sun is orange
+// and sky blue (next to occluders, visibility's noise leaves it less to
+// do): the variance summed over the channels, each relative to its mean,
+// from 3000 estimates of 16 directions with and without it (the means:
+// UnbiasedAgainstBruteForce, with it by default).
 TEST(Frontier, ColourControlLowersColourNoise) {
   const std::vector<ShadingSetup> all = {
-      flat(makeSetup("flat-diffuse-sunrise", sunrise(), lambert(0.8f), {0.3f, 1.0f, 0.2f})), setups()[1]};
-  for (size_t i : {size_t(0), size_t(1)}) {
+      flat(makeSetup("flat-diffuse-sunrise", sunrise(), lambert(0.8f), {0.3f, 1.0f, 0.2f})), setups()[1],
+      makeSetup("ggx0.15-red-plastic-sunrise", sunrise(), ggx(0.15f, glm::vec3(0.04f), glm::vec3(0.7f, 0.15f, 0.1f)),
+                {0.2f, 0.5f, -0.8f})};
+  for (size_t i = 0; i < all.size(); ++i) {
     double relVar[2];
     for (int on = 0; on < 2; ++on) {
       MethodOptions options;
@@ -554,7 +556,10 @@ TEST(Frontier, ColourControlLowersColourNoise) {
       relVar[on] = 0.0;
       for (int c = 0; c < 3; ++c) relVar[on] += 3000.0 * e.stdError[c] * e.stdError[c] / (e.mean[c] * e.mean[c]);
     }
-    EXPECT_LT(relVar[1], 0.7 * relVar[0]) << all[i].name << ": " << relVar[1] << " against " << relVar[0];
+    // The glossy point keeps the noise of its specular lobe's colour inside
+    // nodes (measured 0.71x; relVar's own error here is about 3 %).
+    const double most = i < 2 ? 0.7 : 0.85;
+    EXPECT_LT(relVar[1], most * relVar[0]) << all[i].name << ": " << relVar[1] << " against " << relVar[0];
   }
 }
 
