@@ -213,8 +213,10 @@ struct GpuRenderer::Impl {
   bool hasScene = false;
   std::vector<vk::Buffer> chunks;
   vk::Buffer sceneBuffer, materials, spheres, planes;
-  // Per texel binding, its format and the buffer (first chunk) it views;
-  // null: none yet. A binding without one views a placeholder of one word.
+  // Per texel binding, its format and the buffer (first chunk) it views,
+  // null until that array is uploaded. bindScene gives a binding without a
+  // buffer, and every binding when the arrays do not fit texel views
+  // (kTexels off), a one-word placeholder of its format.
   struct TexelBinding {
     VkFormat format;
     vk::Buffer* buffer = nullptr;

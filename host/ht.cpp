@@ -152,7 +152,7 @@ glm::vec3 HtPoint::brdfColour(const glm::vec3& dirHp) const {
 
 float HtPoint::brdfValue(const glm::vec3& dirHp) const {
   if (table) return table->average(thetaO, {glm::dot(dirHp, tableX), glm::dot(dirHp, tableY), glm::dot(dirHp, n)});
-  return luminance(evalBsdf(material, woLocal, frame.toLocal(dirHp)));
+  return luminance(brdfColour(dirHp));
 }
 
 // Bound of luminance(f cos) over a node's cone: each lobe bounded by its

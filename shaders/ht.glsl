@@ -132,7 +132,7 @@ precise vec3 htBrdfColour(vec3 dirHp) { return evalBsdf(ht.material, ht.woLocal,
 precise float htBrdfValue(vec3 dirHp) {
   if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u)
     return htTableAverage(ht.table, vec3(dot3(dirHp, ht.table.x), dot3(dirHp, ht.table.y), dot3(dirHp, ht.n)));
-  return luminance(evalBsdf(ht.material, ht.woLocal, toLocal(ht.frame, dirHp)));
+  return luminance(htBrdfColour(dirHp));
 }
 
 // HtPoint::brdfBound: each lobe at the smallest angle the node's cone
