@@ -32,10 +32,19 @@ namespace {
 using namespace ht::gpu;
 
 // Directions per dispatch: bounds the time of one dispatch (about 1 s on
-// lavapipe with 2 cores for mis, far less on a GPU).
-constexpr uint64_t kDirectionsPerDispatch = uint64_t(1) << 22;
-// ht-frontier: the tile's scratch (its pixels' tables) at most.
-constexpr uint64_t kScratchBytes = uint64_t(96) << 20;
+// lavapipe with 2 cores for mis); a GPU takes 16 times more, so that a
+// tile has pixels enough to fill it.
+uint64_t directionsPerDispatch(const vk::PhysicalDeviceInfo& d) {
+  return d.type == VK_PHYSICAL_DEVICE_TYPE_CPU ? uint64_t(1) << 22 : uint64_t(1) << 26;
+}
+// ht-frontier: the tile's scratch (its pixels' tables) at most, on a CPU
+// device (where a larger tile gains nothing) and on a GPU: an eighth of its
+// memory, so that a tile fills the GPU with enough pixels.
+constexpr uint64_t kCpuScratchBytes = uint64_t(96) << 20;
+uint64_t scratchBudget(const vk::PhysicalDeviceInfo& d) {
+  if (d.type == VK_PHYSICAL_DEVICE_TYPE_CPU) return kCpuScratchBytes;
+  return std::max(kCpuScratchBytes, d.deviceLocalBytes / 8);
+}
 
 static_assert(BrdfTable::kMargin == float(HT_BRDF_TABLE_MARGIN));
 static_assert(uint32_t(SamplerKind::Independent) == HT_SAMPLER_INDEPENDENT &&
@@ -228,7 +237,11 @@ struct GpuRenderer::Impl {
       {HT_BINDING_FRONTIER_CENTROID_TEXELS, {VK_FORMAT_R32_SFLOAT}}, {HT_BINDING_FRONTIER_BINS_TEXELS, {VK_FORMAT_R32_UINT}}};
   std::map<VkFormat, vk::Buffer> placeholders;
   // Per tile.
+  // The shaders write each pixel's result on the device; one copy per
+  // submission brings them to the host (a shader's scattered writes to
+  // host memory cross the bus slowly on a discrete GPU).
   vk::Buffer pixels;
+  vk::Buffer pixelsHost;
   vk::Buffer pixelState;   // GpuPixelState per tile pixel
   vk::Buffer tsisScratch;  // GpuTsisSlot per region and tile pixel
   vk::Buffer wisScratch;   // HT_WIS_TOP_NODES doubles per tile pixel
@@ -269,7 +282,7 @@ struct GpuRenderer::Impl {
   void checkMethod(const RenderSettings& s) const;
   std::pair<uint32_t, uint32_t> prepareTiles(const RenderSettings& s);
   void bindScratch(const RenderSettings& s, GpuPush& push) const;
-  double submitBatches(GpuPush& push, uint32_t first, uint32_t count, uint32_t limit);
+  std::pair<double, double> submitBatches(GpuPush& push, uint32_t first, uint32_t count, uint32_t limit);
   void renderTile(const RenderSettings& s, GpuPush& push, uint32_t& limit, GpuRenderResult& out);
   void readTile(const RenderSettings& s, const GpuPush& push, GpuRenderResult& out);
 
@@ -288,7 +301,7 @@ struct GpuRenderer::Impl {
     if (ctx.info.timestampValidBits > 0) {
       VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
       q.queryType = VK_QUERY_TYPE_TIMESTAMP;
-      q.queryCount = 2;
+      q.queryCount = 3;
       vk::check(ctx.fn.vkCreateQueryPool(ctx.device, &q, nullptr, &queries), "vkCreateQueryPool");
       timestampMask = ctx.info.timestampValidBits >= 64 ? ~uint64_t(0)
                                                         : (uint64_t(1) << ctx.info.timestampValidBits) - 1;
@@ -721,21 +734,22 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
 }
 
 // Square tiles, a multiple of the workgroup, sized so that one dispatch
-// draws at most kDirectionsPerDispatch directions (ht*: and its pending
+// draws at most directionsPerDispatch directions (ht*: and its pending
 // samples take at most 32 MiB); their buffers.
 std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettings& s) {
   const bool htMethod = methodInfo(s.method).family == Family::Ht;
   const bool frontierMethod = s.method == Method::HtFrontier;
   uint32_t side = htMethod ? std::min<uint32_t>(maxTileSide, HT_MAX_TILE_SIDE) : maxTileSide;
-  while (side > kWorkgroupSize && uint64_t(side) * side * directionsPerPixel(s) > kDirectionsPerDispatch)
+  while (side > kWorkgroupSize && uint64_t(side) * side * directionsPerPixel(s) > directionsPerDispatch(ctx.info))
     side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
-  while (frontierMethod && side > kWorkgroupSize && uint64_t(side) * side * frontier.pixelBytes > kScratchBytes)
+  while (frontierMethod && side > kWorkgroupSize && uint64_t(side) * side * frontier.pixelBytes > scratchBudget(ctx.info))
     side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
   const uint32_t tileW = std::min<uint32_t>(side, uint32_t(s.width));
   const uint32_t tileH = std::min<uint32_t>(side, uint32_t(s.height));
   const VkDeviceSize tilePixels = VkDeviceSize(tileW) * tileH;
   if (pixels.size() < tilePixels * sizeof(GpuPixel)) {
-    pixels = vk::Buffer(ctx, tilePixels * sizeof(GpuPixel), vk::MemoryUse::Readback);
+    pixels = vk::Buffer(ctx, tilePixels * sizeof(GpuPixel), vk::MemoryUse::DeviceLocal);
+    pixelsHost = vk::Buffer(ctx, tilePixels * sizeof(GpuPixel), vk::MemoryUse::Readback);
     pipeline->setBuffer(HT_BINDING_PIXELS, pixels);
   }
   if (pixelState.size() < tilePixels * sizeof(GpuPixelState))
@@ -772,9 +786,11 @@ void GpuRenderer::Impl::bindScratch(const RenderSettings& s, GpuPush& push) cons
   }
 }
 
-// One submission of `count` batches from `first` on; returns its GPU time
-// (0 without timestamps).
-double GpuRenderer::Impl::submitBatches(GpuPush& push, uint32_t first, uint32_t count, uint32_t limit) {
+// One submission of `count` batches from `first` on and the copy of the
+// tile's results to the host; returns the GPU time of the dispatches and of
+// the copy (0 without timestamps).
+std::pair<double, double> GpuRenderer::Impl::submitBatches(GpuPush& push, uint32_t first, uint32_t count,
+                                                           uint32_t limit) {
   const uint32_t groupsX = (push.tileWidth + kWorkgroupSize - 1) / kWorkgroupSize;
   const uint32_t groupsY = (push.tileHeight + kWorkgroupSize - 1) / kWorkgroupSize;
   auto barrier = [this](VkCommandBuffer cmd, VkAccessFlags src, VkAccessFlags dst, VkPipelineStageFlags from,
@@ -790,7 +806,7 @@ double GpuRenderer::Impl::submitBatches(GpuPush& push, uint32_t first, uint32_t 
             VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT,
             VK_PIPELINE_STAGE_HOST_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
     if (queries) {
-      ctx.fn.vkCmdResetQueryPool(cmd, queries, 0, 2);
+      ctx.fn.vkCmdResetQueryPool(cmd, queries, 0, 3);
       ctx.fn.vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
     }
     for (uint32_t k = 0; k < count; ++k) {
@@ -802,23 +818,29 @@ double GpuRenderer::Impl::submitBatches(GpuPush& push, uint32_t first, uint32_t 
       push.batchLimit = limit;
       pipeline->dispatch(cmd, &push, groupsX, groupsY);
     }
-    if (queries) ctx.fn.vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
-    barrier(cmd, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_HOST_READ_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
-            VK_PIPELINE_STAGE_HOST_BIT);
+    barrier(cmd, VK_ACCESS_SHADER_WRITE_BIT, VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+            VK_PIPELINE_STAGE_TRANSFER_BIT);
+    if (queries) ctx.fn.vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, queries, 1);
+    VkBufferCopy region{0, 0, VkDeviceSize(push.tileWidth) * push.tileHeight * sizeof(GpuPixel)};
+    ctx.fn.vkCmdCopyBuffer(cmd, pixels.handle(), pixelsHost.handle(), 1, &region);
+    if (queries) ctx.fn.vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 2);
+    barrier(cmd, VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT, VK_ACCESS_HOST_READ_BIT,
+            VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT);
   });
-  if (!queries) return 0.0;
-  uint64_t stamps[2];
-  vk::check(ctx.fn.vkGetQueryPoolResults(ctx.device, queries, 0, 2, sizeof(stamps), stamps, sizeof(uint64_t),
+  if (!queries) return {0.0, 0.0};
+  uint64_t stamps[3];
+  vk::check(ctx.fn.vkGetQueryPoolResults(ctx.device, queries, 0, 3, sizeof(stamps), stamps, sizeof(uint64_t),
                                   VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
             "vkGetQueryPoolResults");
-  return double((stamps[1] - stamps[0]) & timestampMask) * double(ctx.info.timestampPeriodNs) * 1e-9;
+  const double tick = double(ctx.info.timestampPeriodNs) * 1e-9;
+  return {double((stamps[1] - stamps[0]) & timestampMask) * tick, double((stamps[2] - stamps[1]) & timestampMask) * tick};
 }
 
 // Batches until every pixel of the tile is done; the whole tile again with
 // smaller batches where the driver cut a loop short.
 void GpuRenderer::Impl::renderTile(const RenderSettings& s, GpuPush& push, uint32_t& limit, GpuRenderResult& out) {
   const size_t tilePixels = size_t(push.tileWidth) * push.tileHeight;
-  const auto* px = static_cast<const GpuPixel*>(pixels.mapped());
+  const auto* px = static_cast<const GpuPixel*>(pixelsHost.mapped());
   const uint64_t spp = uint64_t(std::max(s.spp, 1));
   const bool htMethod = methodInfo(s.method).family == Family::Ht;
   for (uint32_t batch = 0;;) {
@@ -829,10 +851,14 @@ void GpuRenderer::Impl::renderTile(const RenderSettings& s, GpuPush& push, uint3
                                        : (spp + limit - 1) / limit + (s.method == Method::HtFrontier ? 1 : 0);
     const uint32_t count =
         uint32_t(std::clamp<uint64_t>(expected - std::min<uint64_t>(expected, batch), 1, kBatchesPerSubmission));
-    const double seconds = submitBatches(push, batch, count, limit);
-    if (queries) out.gpuSeconds += seconds;
+    const auto [seconds, readback] = submitBatches(push, batch, count, limit);
+    if (queries) {
+      out.gpuSeconds += seconds;
+      out.readbackSeconds += readback;
+    }
+    ++out.submissions;
     batch += count;
-    pixels.invalidate();
+    pixelsHost.invalidate();
     bool cut = false, done = true;
     for (size_t i = 0; i < tilePixels; ++i) {
       cut = cut || (px[i].status & HT_PIXEL_LOOPS_CUT) != 0;
@@ -854,7 +880,7 @@ void GpuRenderer::Impl::renderTile(const RenderSettings& s, GpuPush& push, uint3
 // The finished tile's pixels, counters and (ht*, when asked) first samples.
 void GpuRenderer::Impl::readTile(const RenderSettings& s, const GpuPush& push, GpuRenderResult& out) {
   RenderResult& r = out.result;
-  const auto* px = static_cast<const GpuPixel*>(pixels.mapped());
+  const auto* px = static_cast<const GpuPixel*>(pixelsHost.mapped());
   for (uint32_t y = 0; y < push.tileHeight; ++y)
     for (uint32_t x = 0; x < push.tileWidth; ++x) {
       const GpuPixel& p = px[size_t(y) * push.tileWidth + x];
@@ -897,12 +923,15 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s, const MethodTables&
 
   GpuRenderResult out;
   out.gpuSeconds = m.queries ? 0.0 : -1.0;
+  out.readbackSeconds = out.gpuSeconds;
   RenderResult& r = out.result;
   r.image.width = s.width;
   r.image.height = s.height;
   r.image.pixels.assign(size_t(s.width) * s.height, glm::vec3(0.0f));
   if (s.pixelCounts) r.pixelDirections.assign(size_t(s.width) * s.height, 0);
   const uint32_t tileCount = ((uint32_t(s.width) + tileW - 1) / tileW) * ((uint32_t(s.height) + tileH - 1) / tileH);
+  out.tileWidth = int(tileW);
+  out.tileHeight = int(tileH);
   int lastReported = -1;
   uint32_t limit = m.batchLimit > 0 ? m.batchLimit : firstBatchLimit(s, m.envOrder, m.occluders);
   for (uint32_t y = 0; y < uint32_t(s.height); y += tileH)

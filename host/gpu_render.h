@@ -77,7 +77,10 @@ struct HtSampleRecord {
 struct GpuRenderResult {
   RenderResult result;      // image, wall seconds, counters, as renderCpu
   double gpuSeconds = -1.0; // sum of the dispatches' timestamps; < 0 without timestamps
+  double readbackSeconds = -1.0;  // sum of the timestamps around the copies of the results to the host
   int tiles = 0;
+  int tileWidth = 0, tileHeight = 0;  // the largest tile
+  int submissions = 0;     // queue submissions, each waited for (a few batches each)
   int restarts = 0;        // tiles started again with smaller batches (a driver cut a loop short)
   uint32_t batchLimit = 0; // samples (ht*: traversal steps) per pixel and dispatch, at the end
   // With GpuOptions::recordHtSamples: per pixel (y * width + x), its first accepted samples in order.

@@ -305,6 +305,7 @@ int runRender(const RenderOptions& o) {
   double tPrepare = secondsSince(t0);
   RenderResult r;
   double tUpload = 0.0, tGpu = -1.0;
+  nlohmann::json gpuWork;
   if (gpu) {
     t0 = std::chrono::steady_clock::now();
     gpu->setScene(scene);
@@ -312,6 +313,9 @@ int runRender(const RenderOptions& o) {
     GpuRenderResult g = gpu->render(rs, tables);
     r = std::move(g.result);
     tGpu = g.gpuSeconds;
+    gpuWork = {{"readback_seconds", g.readbackSeconds >= 0.0 ? nlohmann::json(g.readbackSeconds) : nlohmann::json(nullptr)},
+               {"tiles", g.tiles}, {"tile_width", g.tileWidth}, {"tile_height", g.tileHeight},
+               {"submissions", g.submissions}, {"batch_limit", g.batchLimit}, {"restarts", g.restarts}};
   } else {
     r = renderCpu(scene, rs, tables);
   }
@@ -322,7 +326,8 @@ int runRender(const RenderOptions& o) {
   double tWrite = secondsSince(t0);
 
   const Seconds seconds{tParse, tEnv, tPrepare, tWrite, tDevice, tUpload, tGpu};
-  const nlohmann::json stats = renderStats(o, scene, rs, r, gpu.get(), seconds, memory, memoryLimit);
+  nlohmann::json stats = renderStats(o, scene, rs, r, gpu.get(), seconds, memory, memoryLimit);
+  if (gpu) stats["device"]["work"] = gpuWork;
   if (statsFile) {
     const std::string text = stats.dump(2) + "\n";
     writeBytes(*statsFile, text.data(), text.size());

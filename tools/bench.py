@@ -350,6 +350,8 @@ def main():
                            "setup_seconds": sec.get("environment", 0.0) + sec.get("prepare", 0.0)
                            + sec.get("device", 0.0) + sec.get("upload", 0.0),
                            "device_name": stats["device"]["name"],
+                           "device_driver": stats["device"].get("driver", ""),
+                           "gpu_work": stats["device"].get("work"),
                            "samples_per_pixel": stats["mean_samples_per_pixel"],
                            "fireflies": ff, "file": img.name, **err}
                     rows.append(row)

@@ -11,7 +11,10 @@
 #   4. tools/scaling.py: render time against spp, environment Nside and image
 #      size; the environment stage split into load / resample / trees for a
 #      1024x512 and a generated 8192x4096 map;
-#   5. tools/report.py into docs/report/ (Markdown + PNG charts, no EXRs).
+#   5. tools/report.py into docs/report/ (Markdown + PNG charts, no EXRs),
+#      with the bench runs on real GPUs kept in docs/report/gpu/*.json
+#      (tools/bench.py --device gpu --spp 16 --width 1920 --height 1080 on
+#      such a machine; its results.json).
 # The binaries are copied first, so a rebuild during the run does not disturb
 # it. Intermediate results (EXRs, CSV, JSON, cached references) go to $OUT.
 # Every setting below can be overridden from the environment, e.g.
@@ -75,6 +78,8 @@ stamp "scaling"
 $PY tools/scaling.py --htrender "$H" --make-env "$bin/make_env" --methods "$SCALING_METHODS" --out "$OUT/scaling"
 
 stamp "report"
+real_gpu=()
+for f in docs/report/gpu/*.json; do [ -f "$f" ] && real_gpu+=(--real-gpu "$f"); done
 $PY tools/report.py --htrender "$H" --bench "$OUT/bench" --floor "$OUT/floor" --stress "$OUT/stress" \
-  --scaling "$OUT/scaling" --out "$REPORT"
+  --scaling "$OUT/scaling" "${real_gpu[@]}" --out "$REPORT"
 stamp "done: $REPORT/README.md ($(du -sh "$REPORT" | cut -f1))"

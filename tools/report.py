@@ -291,6 +291,40 @@ def efficiency_table(rows, spp=16):
     return md
 
 
+def real_gpu_section(data, source):
+    """A bench run on a real GPU (kept in the repository: such a machine is not always at hand)."""
+    rows = [r for r in data["results"] if r["device"] != "cpu" and r.get("sampler", "stratified") == "stratified"]
+    if not rows:
+        return []
+    r0 = rows[0]
+    mis = {r["spp"]: r for r in rows if r["method"] == "mis"}
+    md = [f"## A real GPU: {r0['device_name']}", "",
+          f"{r0['device_name']} ({r0.get('device_driver', '')}), spheres.json at {data['width']}x{data['height']}, "
+          f"the fastest of {data.get('gpu_runs') or data['runs']} timed runs per point after a warm-up, every method "
+          f"side by side in one run of tools/bench.py on a machine with {data['machine']['cores']} CPU cores "
+          f"(`{source}`). GPU ms: the timestamp queries around the dispatches; read-back ms: around the copies of "
+          "the pixels' results to the host; wall: the render call, which adds the tables' upload and each "
+          "tile's submission. Efficiency: "
+          "1 / (relMSE x GPU time) against `mis`'s at the same spp. Tiles: the render's tiles and queue "
+          "submissions.", "",
+          "| method | spp | GPU ms | read-back ms | wall ms | relMSE | efficiency vs mis | tiles / submissions |",
+          "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        g = r.get("gpu_seconds")
+        base = mis.get(r["spp"])
+        work = r.get("gpu_work") or {}
+        eff = "-"
+        if g and base and base.get("gpu_seconds") and r["relmse"] > 0:
+            eff = f"{(base['relmse'] * base['gpu_seconds']) / (r['relmse'] * g):.3g}"
+        back = work.get("readback_seconds")
+        cells = [r["method"], str(r["spp"]), f"{1e3 * g:.2f}" if g is not None else "-",
+                 f"{1e3 * back:.2f}" if back is not None else "-", f"{1e3 * r['seconds']:.1f}", fmt_e(r["relmse"]),
+                 eff, f"{work['tiles']} / {work['submissions']}" if "tiles" in work else "-"]
+        md.append("| " + " | ".join(cells) + " |")
+    md.append("")
+    return md
+
+
 def floor_section(data):
     """The product methods (and the others of the run) against oracle, the brute-force product, at equal spp."""
     rows = [r for r in data["results"] if r.get("device", "cpu") == "cpu"]
@@ -569,6 +603,8 @@ def main():
     p.add_argument("--stress", help="folder with results.json of a bench run over the stress scenes")
     p.add_argument("--scaling", help="folder with scaling.json of tools/scaling.py")
     p.add_argument("--floor", help="folder with results.json of a bench run with oracle (the variance floor)")
+    p.add_argument("--real-gpu", action="append", default=[],
+                   help="results.json of a bench run on a real GPU (repeatable)")
     p.add_argument("--command", default="tools/make-report.sh", help="the command named as the way to regenerate")
     p.add_argument("--htrender", default=str(ROOT / "build" / "htrender"))
     p.add_argument("--out", default=str(ROOT / "docs" / "report"))
@@ -609,6 +645,9 @@ def main():
         md += floor_section(json.loads((Path(args.floor) / "results.json").read_text()))
     if stress:
         md += stress_section(stress, outdir)
+    for f in args.real_gpu:
+        path = Path(f).resolve()
+        md += real_gpu_section(json.loads(path.read_text()), path.relative_to(ROOT) if path.is_relative_to(ROOT) else path)
     if args.scaling:
         md += scaling_section(json.loads((Path(args.scaling) / "scaling.json").read_text()), outdir)
     write_atomic(outdir / "README.md", "\n".join(md) + "\n")
