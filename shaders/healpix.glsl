@@ -4,8 +4,8 @@
 // direction -> pixel runs in double like the CPU, with atan2 written out
 // below (GLSL has no double-precision trigonometry; within 3 ulp of glibc,
 // so an index can only differ for a direction within ~1e-15 of a pixel
-// border). Pixel -> direction runs in double except cos/sin of phi, taken in
-// single precision: the direction differs from the CPU's by an ulp or two.
+// border). Pixel -> direction runs in double, cos/sin of phi too (cosSinD):
+// the direction differs from the CPU's by a few ulp of a double.
 // HT_FP64 = 0 (devices without it) does everything in float: indices then
 // also differ for directions within ~1e-6 pixel widths of a border.
 #ifndef HT_HEALPIX_GLSL
@@ -69,6 +69,35 @@ precise double atan2d(double y, double x) {
   return signBit(y) ? -a : a;
 }
 #define hpAtan2 atan2d
+// cos and sin of x (|x| <= 4 pi): x = k pi/2 + r with pi/2 in two parts,
+// |r| <= pi/4, and r's Taylor series to r^16 / r^17 (truncation below
+// 2^-60). Within a few ulp of glibc's on every device, where GLSL's cos and
+// sin are single precision, and on some drivers (NVIDIA's) only to ~1e-6.
+void cosSinD(double x, out double c, out double s) {
+  precise double k = floor(x * kHpInvHalfPi + 0.5lf);
+  precise double r = (x - k * 1.5707963267948966lf) - k * 6.123233995736766e-17lf;
+  precise double r2 = r * r;
+  precise double ps = -1.0lf / 1307674368000.0lf;
+  ps = ps * r2 + 1.0lf / 6227020800.0lf;
+  ps = ps * r2 - 1.0lf / 39916800.0lf;
+  ps = ps * r2 + 1.0lf / 362880.0lf;
+  ps = ps * r2 - 1.0lf / 5040.0lf;
+  ps = ps * r2 + 1.0lf / 120.0lf;
+  ps = ps * r2 - 1.0lf / 6.0lf;
+  precise double sr = r + r * (r2 * ps);
+  precise double pc = 1.0lf / 20922789888000.0lf;
+  pc = pc * r2 - 1.0lf / 87178291200.0lf;
+  pc = pc * r2 + 1.0lf / 479001600.0lf;
+  pc = pc * r2 - 1.0lf / 3628800.0lf;
+  pc = pc * r2 + 1.0lf / 40320.0lf;
+  pc = pc * r2 - 1.0lf / 720.0lf;
+  pc = pc * r2 + 1.0lf / 24.0lf;
+  pc = pc * r2 - 0.5lf;
+  precise double cr = 1.0lf + r2 * pc;
+  int q = int(k) & 3;
+  c = q == 0 ? cr : q == 1 ? -sr : q == 2 ? -cr : sr;
+  s = q == 0 ? sr : q == 1 ? cr : q == 2 ? -sr : -cr;
+}
 #else
 #define hpAtan2 atan
 #endif
@@ -185,7 +214,7 @@ void faceXYToZPhiSin(uint face, hreal x, hreal y, out hreal z, out hreal phi, ou
   sth = st;
 }
 
-// healpix::pixToVec in the HEALPix frame, cos/sin of phi in float.
+// healpix::pixToVec in the HEALPix frame.
 hvec3 pixToVecAt(uint order, uint pix, hreal dx, hreal dy) {
   uint ix, iy, face;
   pixToXYF(order, pix, ix, iy, face);
@@ -195,8 +224,13 @@ hvec3 pixToVecAt(uint order, uint pix, hreal dx, hreal dy) {
   hreal z, phi, sth;
   faceXYToZPhiSin(face, x, y, z, phi, sth);
   precise hreal st = sth < -2.0 ? sqrt((1.0 - z) * (1.0 + z)) : sth;
-  float fphi = float(phi);
-  precise hvec3 v = hvec3(st * hreal(cos(fphi)), st * hreal(sin(fphi)), z);
+#if HT_FP64
+  double cphi, sphi;
+  cosSinD(phi, cphi, sphi);
+  precise hvec3 v = hvec3(st * cphi, st * sphi, z);
+#else
+  precise hvec3 v = hvec3(st * cos(phi), st * sin(phi), z);
+#endif
   return v;
 }
 hvec3 pixToVec(uint order, uint pix, float dx, float dy) { return pixToVecAt(order, pix, hreal(dx), hreal(dy)); }

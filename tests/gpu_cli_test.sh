@@ -56,6 +56,10 @@ assert s["method"] == sys.argv[2] and s["mean_samples_per_pixel"] == (8 if sys.a
 sec = s["seconds"]
 assert all(k in sec for k in ("parse", "environment", "render", "write", "device", "upload", "gpu")), sec
 assert sec["gpu"] is None or 0 <= sec["gpu"] <= sec["render"] + 1e-3, sec
+w = d["work"]  # the tiles cover the image; each waited for at least once
+tiles = -(-s["width"] // w["tile_width"]) * -(-s["height"] // w["tile_height"])
+assert w["tiles"] == tiles and w["submissions"] >= tiles and w["restarts"] == 0 and w["batch_limit"] > 0, w
+assert w["readback_seconds"] is None or 0 <= w["readback_seconds"] <= sec["render"], w
 PY
     "$bin" render "${small[@]}" --method $m --device cpu --out "$tmp/c-$m.exr" \
       && "$bin" compare --ref "$tmp/c-$m.exr" --test "$tmp/g-$m.exr" >"$tmp/cmp" \
