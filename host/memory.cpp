@@ -92,8 +92,8 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
           uint64_t(std::min(in.width, HT_MAX_TILE_SIDE)) * uint64_t(std::min(in.height, HT_MAX_TILE_SIDE));
       gpu += nodes * 20 + tile * HT_QUEUE_BYTES;
     }
-    // ht-frontier: geometry, colour bins, chroma and centroids; a tile's tables (GpuRenderer's kScratchBytes at
-    // most).
+    // ht-frontier: geometry, colour bins, chroma and centroids; a tile's tables (at most GpuRenderer's
+    // kCpuScratchBytes on a CPU device, whose buffers are host memory; a GPU's larger scratch is its own).
     if (in.method == Method::HtFrontier) gpu += nodes * 27 + (uint64_t(96) << 20);
     gpu += image * 12;  // the readback of the tiles, gathered
     add("GPU buffers", gpu);
