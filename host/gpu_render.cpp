@@ -913,12 +913,18 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
   return render(s, prepareTables(*impl_->hostScene, s.method, s.options));
 }
 
+void GpuRenderer::uploadTables(const RenderSettings& s, const MethodTables& tables) {
+  impl_->checkMethod(s);
+  impl_->usePipeline(s.method);
+  impl_->uploadTables(s, tables);
+}
+
 GpuRenderResult GpuRenderer::render(const RenderSettings& s, const MethodTables& tables) {
   Impl& m = *impl_;
   m.checkMethod(s);
   m.usePipeline(s.method);
-  const auto start = std::chrono::steady_clock::now();
   m.uploadTables(s, tables);
+  const auto start = std::chrono::steady_clock::now();
   const auto [tileW, tileH] = m.prepareTiles(s);
 
   GpuRenderResult out;

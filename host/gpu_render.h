@@ -98,8 +98,11 @@ class GpuRenderer {
   // and shapes; once per scene.
   void setScene(const Scene& scene);
   // `tables`: prepareTables of the scene, method and options; uploaded at
-  // the first render that reads them.
+  // the first render that reads them, before its time starts (the CPU's
+  // render time leaves out building them, the GPU's uploading them).
   GpuRenderResult render(const RenderSettings& settings, const MethodTables& tables);
+  // Uploads the tables a render of `settings` reads now (once per tables).
+  void uploadTables(const RenderSettings& settings, const MethodTables& tables);
   // The same, preparing the tables for the scene of setScene (which must
   // still exist); their time is not in the result's.
   GpuRenderResult render(const RenderSettings& settings);

@@ -309,6 +309,7 @@ int runRender(const RenderOptions& o) {
   if (gpu) {
     t0 = std::chrono::steady_clock::now();
     gpu->setScene(scene);
+    gpu->uploadTables(rs, tables);
     tUpload = secondsSince(t0);
     GpuRenderResult g = gpu->render(rs, tables);
     r = std::move(g.result);
