@@ -929,7 +929,7 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s, const MethodTables&
 
   GpuRenderResult out;
   out.gpuSeconds = m.queries ? 0.0 : -1.0;
-  out.readbackSeconds = out.gpuSeconds;
+  out.readbackSeconds = m.queries ? 0.0 : -1.0;
   RenderResult& r = out.result;
   r.image.width = s.width;
   r.image.height = s.height;
