@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
 #include "bsdf.h"
+#include "error.h"
 #include "healpix.h"
 #include "tree.h"
 
@@ -83,6 +85,21 @@ constexpr std::array<double, healpix::kMaxOrder + 1> kPixelSolidAngle = [] {
 
 std::shared_ptr<const HtGeometry> buildHtGeometry(int order) { return buildGeometry(order); }
 
+std::shared_ptr<const HtNodes> buildHtNodes(const HtGeometry& g, const MaxAvgTree& tree) {
+  const size_t n = g.centers.size();
+  if (tree.order != g.order || tree.maxv.size() != n || tree.avgv.size() != n)
+    throw Error("internal: HT node records of a tree and a geometry of different orders");
+  auto out = std::make_shared<HtNodes>();
+  out->treeId = tree.id;
+  out->count = n;
+  out->storage = HugeBuffer(n * sizeof(HtNode));
+  HtNode* nodes = static_cast<HtNode*>(out->storage.data());
+  tbb::parallel_for(size_t(0), n, [&](size_t i) {
+    std::construct_at(nodes + i, HtNode{g.centers[i], tree.maxv[i], g.cosSinRadius[i], tree.avgv[i], 0.0f});
+  });
+  return out;
+}
+
 Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry, int levels) {
   Cap c{axis, angle, std::cos(angle), {}, {}};
   c.cosInside.fill(2.0f);    // never inside
@@ -129,12 +146,24 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt, 
       options(opt),
       geometry(tables.geometry()),
       material(*sp.material),
-      frame(glm::normalize(toFloat(sc.environment.toHealpixFrame(sp.normal)))) {
+      frame(glm::normalize(toFloat(sc.environment.toHealpixFrame(sp.normal)))),
+      nodes(tables.nodes().data()) {
+  if (tables.nodes().treeId != env.tree.id || geometry.order != env.order)
+    throw Error("internal: HT tables prepared for another environment");
   n = frame.n;
   wo = glm::normalize(toFloat(env.toHealpixFrame(sp.wo)));
   woLocal = frame.toLocal(wo);
   mirror = reflectAbout(wo, n);
   if (material.type == MaterialType::Ggx) brdfG1 = ggxG1(woLocal, material.alpha);
+  // brdfBound's factors that hold for every node, each computed as its
+  // expression there groups them (the same values).
+  boundTerms_.diffuse = luminance(material.diffuse) * kInvPi;
+  boundTerms_.phong = luminance(material.specular) * (material.exponent + 2.0f) * 0.5f * kInvPi;
+  boundTerms_.a2 = material.alpha * material.alpha;
+  boundTerms_.a2Minus1 = boundTerms_.a2 - 1.0f;
+  boundTerms_.f0 = luminance(material.specular);
+  boundTerms_.oneMinusF0 = 1.0f - boundTerms_.f0;
+  boundTerms_.fourCosO = 4.0f * woLocal.z;
   if (options.brdfTable) {
     table = &tables.brdfTable(sc, sp.material);
     thetaO = std::acos(std::clamp(woLocal.z, -1.0f, 1.0f));
@@ -164,8 +193,9 @@ float HtPoint::brdfBound(uint64_t i) const {
 }
 
 float HtPoint::brdfBound(uint64_t i, float& diffuse) const {
-  const glm::vec3& axis = geometry.centers[i];
-  const float cr = geometry.cosSinRadius[i].x, sr = geometry.cosSinRadius[i].y;
+  const HtNode& nd = nodes[i];
+  const glm::vec3& axis = nd.centre;
+  const float cr = nd.cosSinRadius.x, sr = nd.cosSinRadius.y;
   if (table) {
     diffuse = table->bound(thetaO, {glm::dot(axis, tableX), glm::dot(axis, tableY), glm::dot(axis, n)}, cr, sr);
     return diffuse;
@@ -173,26 +203,23 @@ float HtPoint::brdfBound(uint64_t i, float& diffuse) const {
   diffuse = 0.0f;
   float cosMax = cosClosest(axis, n, cr, sr);
   if (cosMax <= 0.0f || woLocal.z <= 0.0f) return 0.0f;
-  float b = luminance(material.diffuse) * kInvPi * cosMax;
+  const BoundTerms& k = boundTerms_;
+  float b = k.diffuse * cosMax;
   diffuse = b;
   if (material.type == MaterialType::Phong) {
     float c = cosClosest(axis, mirror, cr, sr);
-    if (c > 0.0f)
-      b += luminance(material.specular) * (material.exponent + 2.0f) * 0.5f * kInvPi * std::pow(c, material.exponent) *
-           cosMax;
+    if (c > 0.0f) b += k.phong * std::pow(c, material.exponent) * cosMax;
   } else if (material.type == MaterialType::Ggx) {
     // Rotating wo about h and about n differ by a rotation of twice their
     // angle, so angle(h, n) >= angle(w, mirror) / 2.
     float cos2H = 0.5f * (1.0f + cosClosest(axis, mirror, cr, sr));
-    float a2 = material.alpha * material.alpha;
-    float d = cos2H * (a2 - 1.0f) + 1.0f;
-    float dMax = a2 / (kPi * d * d);
+    float d = cos2H * k.a2Minus1 + 1.0f;
+    float dMax = k.a2 / (kPi * d * d);
     // Schlick grows with the half angle between wo and w.
     float cosHalf = std::sqrt(std::max(0.0f, 0.5f * (1.0f + cosFarthest(axis, wo, cr, sr))));
     float m = 1.0f - cosHalf;
-    float f0 = luminance(material.specular);
-    float fresnel = f0 + (1.0f - f0) * m * m * m * m * m;
-    b += fresnel * dMax * brdfG1 / (4.0f * woLocal.z);
+    float fresnel = k.f0 + k.oneMinusF0 * m * m * m * m * m;
+    b += fresnel * dMax * brdfG1 / k.fourCosO;
   }
   return b;
 }
@@ -229,12 +256,12 @@ float HtPoint::bound(int level, uint64_t node, float& brdfB, int& cls) const {
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
   brdfB = 0.0f;
   cls = 1;
-  float e = env.tree.maxv[i];
+  float e = nodes[i].maxv;
   if (e <= 0.0f) return 0.0f;
   brdfB = brdfBound(i);
   float b = e * brdfB;
   if (b > 0.0f && options.visibility) {
-    cls = visibilityClass(geometry.centers[i], level);
+    cls = visibilityClass(nodes[i].centre, level);
     if (cls == 0) return 0.0f;
   }
   return b;
@@ -244,27 +271,27 @@ float HtPoint::bound(int level, uint64_t node, float& brdfB, int& cls) const {
 // floor of its own bound, so that it is positive wherever the bound is.
 float HtPoint::nodeEstimate(int level, uint64_t node) const {
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
-  return nodeEstimate(level, node, brdfBound(i), options.visibility ? visibilityClass(geometry.centers[i], level) : 1);
+  return nodeEstimate(level, node, brdfBound(i), options.visibility ? visibilityClass(nodes[i].centre, level) : 1);
 }
 
 float HtPoint::nodeEstimate(int level, uint64_t node, float brdfB, int cls) const {
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
-  float brdf = std::max(brdfValue(geometry.centers[i]), options.brdfFloor * brdfB);
+  float brdf = std::max(brdfValue(nodes[i].centre), options.brdfFloor * brdfB);
   float vis = cls == 0 ? 0.0f : cls == 1 ? 1.0f : 0.5f;
-  return env.tree.avgv[i] * brdf * vis;
+  return nodes[i].avgv * brdf * vis;
 }
 
 float HtPoint::leafValue(uint64_t leaf, float pathMin) const {
   const uint64_t i = MaxAvgTree::levelOffset(env.order) + leaf;
-  return leafValue(leaf, pathMin, brdfBound(i), options.visibility ? visibilityClass(geometry.centers[i], env.order) : 1);
+  return leafValue(leaf, pathMin, brdfBound(i), options.visibility ? visibilityClass(nodes[i].centre, env.order) : 1);
 }
 
 float HtPoint::leafValue(uint64_t leaf, float pathMin, float brdfB, int cls) const {
   const uint64_t i = MaxAvgTree::levelOffset(env.order) + leaf;
-  float e = env.tree.avgv[i];
+  float e = nodes[i].avgv;
   if (e <= 0.0f || pathMin <= 0.0f) return 0.0f;
   if (brdfB <= 0.0f || cls == 0) return 0.0f;
-  float h = e * std::max(brdfValue(geometry.centers[i]), options.brdfFloor * brdfB);
+  float h = e * std::max(brdfValue(nodes[i].centre), options.brdfFloor * brdfB);
   if (cls == 2) h *= visibleFraction(leaf);
   // Never above a bound used to prune an ancestor: pruning then loses nothing.
   return std::min(h, pathMin);
@@ -383,17 +410,27 @@ void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin
   // alone does not prune: a blocked node's bound is 0 and prunes too. The
   // budget's nodes (`known`) keep the factors it computed.
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
+  if (level < env.order) {
+    // The children's two lines load while this node is bounded.
+    const HtNode* children = nodes + MaxAvgTree::levelOffset(level + 1) + 4 * node;
+    __builtin_prefetch(children);
+    __builtin_prefetch(children + 2);
+  }
   const BudgetNode* kn = known >= 0 ? &budget_[size_t(known)] : nullptr;
-  const float e = env.tree.maxv[i];
+  const float e = nodes[i].maxv;
   const float brdfB = kn ? kn->brdfBound : e > 0.0f ? brdfBound(i) : 0.0f;
   float b = e > 0.0f ? e * brdfB : 0.0f;
   const double ru = double(r) + w.u;
   if (ru >= threshold(b)) return;
+  if (level + 1 < env.order) {
+    const HtNode* grand = nodes + MaxAvgTree::levelOffset(level + 2) + 16 * node;
+    for (int k = 0; k < 16; k += 2) __builtin_prefetch(grand + k);
+  }
   int cls = 1;
   if (kn) {
     cls = kn->visibility;
   } else if (options.visibility) {
-    cls = visibilityClass(geometry.centers[i], level);
+    cls = visibilityClass(nodes[i].centre, level);
     if (cls == 0) return;
   }
   pathMin = std::min(pathMin, b);
@@ -422,7 +459,7 @@ void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin
 // blend back to exact ones.
 bool HtPoint::stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pathMin, float brdfB, int cls) const {
   const uint64_t i = MaxAvgTree::levelOffset(level) + node;
-  const glm::vec3& c = geometry.centers[i];
+  const glm::vec3& c = nodes[i].centre;
   float centre = brdfValue(c);
   // Smooth where the BRDF's maximum over the node is close to its centre
   // value; the tables' maxima carry a margin that is not the BRDF's.
@@ -430,9 +467,9 @@ bool HtPoint::stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pat
   if (!(centre > 0.0f) || brdfB > (1.0f + options.biasedSmoothness) * centre * margin) return false;
   // The environment keeps its exact value; a node where it varies a lot
   // would turn that into fireflies.
-  if (env.tree.maxv[i] > 2.0f * env.tree.avgv[i]) return false;
+  if (nodes[i].maxv > 2.0f * nodes[i].avgv) return false;
   if (cls != 1) return false;
-  float h = std::min(pathMin, env.tree.avgv[i] * centre);
+  float h = std::min(pathMin, nodes[i].avgv * centre);
   if (!(h > 0.0f)) return false;
   const double t = threshold(h);
   if (double(r) + w.u >= t) return true;

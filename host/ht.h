@@ -26,6 +26,7 @@
 #include <glm/vec3.hpp>
 
 #include "brdf_table.h"
+#include "huge_buffer.h"
 #include "tables.h"
 #include "shading.h"
 #include "rng.h"
@@ -76,6 +77,24 @@ struct HtGeometry {
   std::array<float, 32> levelCosRadius{}, levelSinRadius{};
 };
 std::shared_ptr<const HtGeometry> buildHtGeometry(int order);
+
+// What the CPU traversal reads of one node, packed: the four children of a
+// node are 128 contiguous bytes (two cache lines) instead of lines in four
+// arrays apart, which is where its time went on deep levels.
+struct alignas(32) HtNode {
+  glm::vec3 centre;
+  float maxv;  // environment tree
+  glm::vec2 cosSinRadius;
+  float avgv;  // environment tree
+  float unused;
+};
+struct HtNodes {
+  uint64_t treeId = 0;  // MaxAvgTree::id of the tree it packs
+  size_t count = 0;
+  HugeBuffer storage;
+  const HtNode* data() const { return static_cast<const HtNode*>(storage.data()); }
+};
+std::shared_ptr<const HtNodes> buildHtNodes(const HtGeometry& geometry, const MaxAvgTree& tree);
 
 // A spherical cap of blocked directions (sphere occluder or the far side of
 // a plane), in the HEALPix frame.
@@ -176,6 +195,7 @@ class HtPoint {
   glm::vec3 n, wo, mirror;  // HEALPix frame
   float brdfG1 = 1.0f;
   std::vector<Cap> caps;
+  const HtNode* nodes;               // HtNodes of the map's tree
   const BrdfTable* table = nullptr;  // tabulated bounds, when chosen
   glm::vec3 tableX, tableY;          // tangents of the table's frame (wo in its x-z plane)
   float thetaO = 0.0f;
@@ -222,6 +242,11 @@ class HtPoint {
   std::array<int32_t, 12> budgetFace_{-1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1};
   double cEst_ = 1.0;
   double s_ = 0.0;
+  struct BoundTerms {
+    float diffuse, phong;                 // luminance x normalisation of the Lambert and Phong lobes
+    float a2, a2Minus1, f0, oneMinusF0;  // GGX
+    float fourCosO;
+  } boundTerms_{};
 };
 
 // HT estimate at a shading point with n expected samples (the `ht*` methods):

@@ -108,6 +108,7 @@ MethodTables prepareTables(const Scene& scene, Method method, const MethodOption
   const Family family = methodInfo(method).family;
   if (family == Family::Ht || family == Family::Oracle || method == Method::HtFrontier)
     t.htGeometry = buildHtGeometry(env.order);
+  if (family == Family::Ht || method == Method::HtFrontier) t.htNodes = buildHtNodes(*t.htGeometry, env.tree);
   if (family == Family::Ht && options.brdfBounds == MethodOptions::BrdfBounds::Table)
     for (const Material& m : scene.materials) t.brdfTables.push_back(std::make_shared<const BrdfTable>(m));
   if (method == Method::Wis || method == Method::WisBiased)

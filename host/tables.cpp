@@ -1,6 +1,7 @@
 #include "tables.h"
 
 #include "error.h"
+#include "ht.h"
 #include "ht_frontier.h"
 #include "scene.h"
 
@@ -9,6 +10,11 @@ namespace ht {
 const HtGeometry& MethodTables::geometry() const {
   if (!htGeometry) throw Error("internal: HEALPix geometry used but not prepared");
   return *htGeometry;
+}
+
+const HtNodes& MethodTables::nodes() const {
+  if (!htNodes) throw Error("internal: HT node records used but not prepared");
+  return *htNodes;
 }
 
 const BrdfTable& MethodTables::brdfTable(const Scene& scene, const Material* material) const {

@@ -14,6 +14,7 @@
 namespace ht {
 
 struct HtGeometry;
+struct HtNodes;
 class BrdfTable;
 struct TsisTable;
 struct FrontierColours;
@@ -22,6 +23,7 @@ struct Material;
 
 struct MethodTables {
   std::shared_ptr<const HtGeometry> htGeometry;               // ht*, ht-frontier, oracle: the map's order
+  std::shared_ptr<const HtNodes> htNodes;                     // ht*, ht-frontier: geometry and trees packed
   std::vector<std::shared_ptr<const BrdfTable>> brdfTables;   // ht* with table bounds: per scene material
   std::shared_ptr<const std::vector<glm::vec3>> wisCenters;   // wis*: node centres up to its order
   std::shared_ptr<const TsisTable> tsis;                      // tsis
@@ -29,6 +31,7 @@ struct MethodTables {
 
   // Each throws an internal ht::Error when its table was not prepared.
   const HtGeometry& geometry() const;
+  const HtNodes& nodes() const;
   // The table of `material`, one of scene.materials.
   const BrdfTable& brdfTable(const Scene& scene, const Material* material) const;
   const std::vector<glm::vec3>& wis() const;

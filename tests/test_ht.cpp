@@ -265,6 +265,34 @@ TEST(Ht, LevelRadiusBoundsEveryNode) {
   }
 }
 
+// The traversal's packed node records hold the geometry's and the trees'
+// values unchanged, and an HtPoint refuses records of another map.
+TEST(Ht, NodeRecordsPackGeometryAndTrees) {
+  const int order = 3;
+  const ShadingSetup s = smallSetups(order)[0];
+  const std::shared_ptr<const HtGeometry> g = buildHtGeometry(order);
+  const std::shared_ptr<const HtNodes> nodes = buildHtNodes(*g, s.scene.environment.tree);
+  ASSERT_EQ(nodes->count, g->centers.size());
+  for (size_t i = 0; i < nodes->count; ++i) {
+    const HtNode& n = nodes->data()[i];
+    ASSERT_EQ(n.centre, g->centers[i]) << i;
+    ASSERT_EQ(n.cosSinRadius, g->cosSinRadius[i]) << i;
+    ASSERT_EQ(n.maxv, s.scene.environment.tree.maxv[i]) << i;
+    ASSERT_EQ(n.avgv, s.scene.environment.tree.avgv[i]) << i;
+  }
+  EXPECT_THROW(buildHtNodes(*buildHtGeometry(order + 1), s.scene.environment.tree), Error);
+
+  const HtOptions opt = optionsFor(true);
+  const MethodTables tables = htTables(s.scene, opt);
+  Scene other = s.scene;
+  other.environment = smallSky(order);  // the same values, another tree
+  ShadingPoint sp = s.sp;
+  sp.material = &other.materials[0];
+  EXPECT_THROW(HtPoint(other, sp, opt, tables), Error);
+  const MethodTables own = htTables(other, opt);
+  EXPECT_NO_THROW(HtPoint(other, sp, opt, own));
+}
+
 // ht and ht-vis are unbiased: z-tests against the brute-force integral at
 // the shading points of the baseline tests and a black hemisphere.
 // Hit points round to either side of their surface. The visibility caps
