@@ -347,7 +347,15 @@ void HtPoint::estimateBudget() {
   // sample count, never the expectation of the estimate. The largest mass
   // comes from a heap; ties go to the node inserted first, and the sum runs
   // in insertion order, as the GPU's linear scan does.
-  thread_local std::vector<std::pair<double, int64_t>> heap;  // (mass, -index)
+  struct Entry {
+    double mass;
+    int32_t index;  // into nodes
+  };
+  // The heap's order: the larger mass first, then the smaller index.
+  const auto before = [](const Entry& a, const Entry& b) {
+    return a.mass < b.mass || (a.mass == b.mass && a.index > b.index);
+  };
+  thread_local std::vector<Entry> heap;
   std::vector<BudgetNode>& nodes = budget_;
   nodes.clear();
   nodes.reserve(12 + 4 * size_t(std::max(0, options.budgetRefinements)));
@@ -357,16 +365,16 @@ void HtPoint::estimateBudget() {
     int cls;
     double mass = double(bound(l, p, brdfB, cls)) * kPixelSolidAngle[l];
     if (!(mass > 0.0)) return -1;
-    heap.emplace_back(mass, -int64_t(nodes.size()));
-    std::push_heap(heap.begin(), heap.end());
+    heap.push_back({mass, int32_t(nodes.size())});
+    std::push_heap(heap.begin(), heap.end(), before);
     nodes.push_back({l, p, false, brdfB, cls, {-1, -1, -1, -1}});
     return int32_t(nodes.size() - 1);
   };
   for (int f = 0; f < 12; ++f) budgetFace_[f] = push(0, uint64_t(f));
   for (int k = 0; k < options.budgetRefinements && !heap.empty(); ++k) {
-    const size_t top = size_t(-heap.front().second);
+    const size_t top = size_t(heap.front().index);
     if (nodes[top].level >= env.order) break;
-    std::pop_heap(heap.begin(), heap.end());
+    std::pop_heap(heap.begin(), heap.end(), before);
     heap.pop_back();
     nodes[top].split = true;
     const int level = nodes[top].level + 1;
