@@ -910,7 +910,7 @@ void GpuRenderer::Impl::readTile(const RenderSettings& s, const GpuPush& push, G
 
 GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
   impl_->checkMethod(s);
-  return render(s, prepareTables(*impl_->hostScene, s.method, s.options));
+  return render(s, prepareTables(*impl_->hostScene, s.method, s.options, TablesFor::Gpu));
 }
 
 void GpuRenderer::uploadTables(const RenderSettings& s, const MethodTables& tables) {

@@ -102,13 +102,14 @@ HtOptions htOptionsFor(Method method, const MethodOptions& methodOptions) {
   return options;
 }
 
-MethodTables prepareTables(const Scene& scene, Method method, const MethodOptions& options) {
+MethodTables prepareTables(const Scene& scene, Method method, const MethodOptions& options, TablesFor device) {
   MethodTables t;
   const Environment& env = scene.environment;
   const Family family = methodInfo(method).family;
   if (family == Family::Ht || family == Family::Oracle || method == Method::HtFrontier)
     t.htGeometry = buildHtGeometry(env.order);
-  if (family == Family::Ht || method == Method::HtFrontier) t.htNodes = buildHtNodes(*t.htGeometry, env.tree);
+  if ((family == Family::Ht || method == Method::HtFrontier) && device == TablesFor::Cpu)
+    t.htNodes = buildHtNodes(*t.htGeometry, env.tree);
   if (family == Family::Ht && options.brdfBounds == MethodOptions::BrdfBounds::Table)
     for (const Material& m : scene.materials) t.brdfTables.push_back(std::make_shared<const BrdfTable>(m));
   if (method == Method::Wis || method == Method::WisBiased)

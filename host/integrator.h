@@ -68,8 +68,11 @@ HtOptions htOptionsFor(Method method, const MethodOptions& options);
 
 // The tables `method` reads at every shading point of `scene` (HEALPix
 // geometry, BRDF tables, wis's node centres, tsis's summed-area table);
-// built before a render so that its time leaves them out.
-MethodTables prepareTables(const Scene& scene, Method method, const MethodOptions& options = {});
+// built before a render so that its time leaves them out. A render on the
+// GPU leaves out what only the CPU reads (HT's packed node records).
+enum class TablesFor { Cpu, Gpu };
+MethodTables prepareTables(const Scene& scene, Method method, const MethodOptions& options = {},
+                           TablesFor device = TablesFor::Cpu);
 
 // f(wo, wi) cos+(n, wi) V(x, wi): the integrand without the radiance.
 glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const glm::vec3& wi);

@@ -301,7 +301,7 @@ int runRender(const RenderOptions& o) {
   const RenderSettings rs = renderSettings(o, scene, *method);
   // One-time tables (HEALPix geometry, BRDF tables) are built here, outside the render timing.
   t0 = std::chrono::steady_clock::now();
-  const MethodTables tables = prepareTables(scene, rs.method, rs.options);
+  const MethodTables tables = prepareTables(scene, rs.method, rs.options, gpu ? TablesFor::Gpu : TablesFor::Cpu);
   double tPrepare = secondsSince(t0);
   RenderResult r;
   double tUpload = 0.0, tGpu = -1.0;

@@ -60,7 +60,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
 
   uint64_t tables = 0;
   if (usesHtGeometry(in.method)) tables += add("HT node geometry", nodes * 20);
-  if (isHt(in.method) || in.method == Method::HtFrontier) tables += add("HT node records", nodes * 32);
+  if ((isHt(in.method) || in.method == Method::HtFrontier) && !in.gpu) tables += add("HT node records", nodes * 32);
   if (in.method == Method::Oracle) {
     const int k = std::clamp(in.options.oracleOrder, 0, in.envOrder);
     tables += add("oracle tables (per thread)", uint64_t(std::max(in.threads, 1)) * MaxAvgTree::levelSize(k) * 40);
