@@ -515,7 +515,7 @@ void HtPoint::visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float
     return;
   }
   // One candidate (or, at the deepest level, all that remain), each uniform in the cell.
-  const double cells = std::ldexp(1.0, level - env.order);
+  const double cells = double(uint64_t(1) << (level - env.order));
   for (double i = double(r); i + w.u < t; i += step) {
     w.jitter.startSample(uint32_t(w.counters.samples));
     const glm::vec2 jitter = w.jitter.get2D();
