@@ -20,7 +20,7 @@ glm::vec3 mirror(const glm::vec3& wo) { return {-wo.x, -wo.y, wo.z}; }
 
 glm::vec3 evalBsdf(const Material& m, const glm::vec3& wo, const glm::vec3& wi) {
   if (wo.z <= 0.0f || wi.z <= 0.0f) return glm::vec3(0.0f);
-  glm::vec3 result = m.diffuse * (kInvPi * wi.z);
+  glm::vec3 result = diffuseFcos(m, wi.z);
   switch (m.type) {
     case MaterialType::Lambert:
       break;

@@ -6,6 +6,8 @@
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
+#include "sampling.h"
+
 namespace ht {
 
 enum class MaterialType { Lambert, Phong, Ggx };
@@ -20,6 +22,8 @@ struct Material {
 
 // f * cos for a direction pair; zero when either lies below the surface.
 glm::vec3 evalBsdf(const Material& m, const glm::vec3& wo, const glm::vec3& wi);
+// Its diffuse lobe, the whole of it for Lambert, at cos(wi) = cosI > 0.
+inline glm::vec3 diffuseFcos(const Material& m, float cosI) { return m.diffuse * (kInvPi * cosI); }
 
 // Probability of picking the specular lobe when sampling.
 float specularLobeProbability(const Material& m);

@@ -181,6 +181,10 @@ glm::vec3 HtPoint::brdfColour(const glm::vec3& dirHp) const {
 
 float HtPoint::brdfValue(const glm::vec3& dirHp) const {
   if (table) return table->average(thetaO, {glm::dot(dirHp, tableX), glm::dot(dirHp, tableY), glm::dot(dirHp, n)});
+  if (material.type == MaterialType::Lambert) {  // evalBsdf's value, from the cosine alone
+    const float cosI = glm::dot(dirHp, frame.n);
+    return woLocal.z <= 0.0f || cosI <= 0.0f ? 0.0f : luminance(diffuseFcos(material, cosI));
+  }
   return luminance(brdfColour(dirHp));
 }
 
