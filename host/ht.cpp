@@ -131,8 +131,10 @@ std::vector<Occluder> occluders(const Scene& scene, const ShadingPoint& sp) {
 }
 
 std::vector<Cap> visibilityCaps(const Scene& scene, const ShadingPoint& sp, const HtGeometry& geometry, int levels) {
+  const std::vector<Occluder> blockers = occluders(scene, sp);
   std::vector<Cap> caps;
-  for (const Occluder& o : occluders(scene, sp)) {
+  caps.reserve(blockers.size());
+  for (const Occluder& o : blockers) {
     // A plane's far side: pi/2 exactly as the shaders' kHtPlaneCapAngle.
     const float angle = (o.sinHalfAngle == 1.0f ? 0.5f * kPi : std::asin(o.sinHalfAngle)) - kCapMargin;
     if (angle > 0.0f) caps.push_back(makeCap(o.axis, angle, geometry, levels));
