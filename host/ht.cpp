@@ -194,6 +194,11 @@ float HtPoint::brdfValue(const glm::vec3& dirHp) const {
 // value at the smallest angle the cone allows (DESIGN.md section 6), in
 // cosines so that no inverse trigonometry is needed.
 float HtPoint::brdfBound(uint64_t i) const {
+  if (material.type == MaterialType::Lambert && !table) {  // the lobe most points have, inline
+    const HtNode& nd = nodes[i];
+    const float cosMax = cosClosest(nd.centre, n, nd.cosSinRadius.x, nd.cosSinRadius.y);
+    return cosMax <= 0.0f || woLocal.z <= 0.0f ? 0.0f : boundTerms_.diffuse * cosMax;
+  }
   float diffuse;
   return brdfBound(i, diffuse);
 }
