@@ -94,9 +94,14 @@ std::shared_ptr<const HtNodes> buildHtNodes(const HtGeometry& g, const MaxAvgTre
   out->count = n;
   out->storage = HugeBuffer(n * sizeof(HtNode));
   HtNode* nodes = static_cast<HtNode*>(out->storage.data());
-  tbb::parallel_for(size_t(0), n, [&](size_t i) {
-    std::construct_at(nodes + i, HtNode{g.centers[i], tree.maxv[i], g.cosSinRadius[i], tree.avgv[i], 0.0f});
-  });
+  for (int l = 0; l <= g.order; ++l) {
+    const uint64_t offset = MaxAvgTree::levelOffset(l);
+    tbb::parallel_for(uint64_t(0), MaxAvgTree::levelSize(l), [&](uint64_t p) {
+      const size_t i = offset + p;
+      std::construct_at(nodes + i, HtNode{g.centers[i], tree.maxv[i], g.cosSinRadius[i], tree.avgv[i],
+                                          HtPoint::nodeHash(l, p)});
+    });
+  }
   return out;
 }
 
@@ -314,12 +319,19 @@ float HtPoint::pathBound(uint64_t leaf) const {
   return m;
 }
 
-const std::array<uint8_t, 4>& HtPoint::permutation(uint32_t pixelSeed, int level, uint64_t node) {
+uint32_t HtPoint::nodeHash(int level, uint64_t node) {
   constexpr uint32_t kHashOfZero = pcgHash(0u);  // the high word of every data node
   const uint32_t high = uint32_t(node >> 32);
   const uint32_t highHash = high == 0u ? kHashOfZero : pcgHash(high);
-  uint32_t h = pcgHash(pixelSeed ^ pcgHash(uint32_t(level) ^ pcgHash(uint32_t(node) ^ highHash)));
-  return kPermutations[h % 24];
+  return pcgHash(uint32_t(level) ^ pcgHash(uint32_t(node) ^ highHash));
+}
+
+const std::array<uint8_t, 4>& HtPoint::permutationOf(uint32_t pixelSeed, uint32_t nodeHash) {
+  return kPermutations[pcgHash(pixelSeed ^ nodeHash) % 24];
+}
+
+const std::array<uint8_t, 4>& HtPoint::permutation(uint32_t pixelSeed, int level, uint64_t node) {
+  return permutationOf(pixelSeed, nodeHash(level, node));
 }
 
 int HtPoint::digit(uint32_t pixelSeed, int level, uint64_t node, int child) {
@@ -463,7 +475,7 @@ void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin
   // child's lowest one: a child whose lowest candidate misses T(pathMin)
   // accepts nothing, and its bound need not be computed.
   const double tPath = threshold(pathMin);
-  const auto& perm = permutation(w.seed, level, node);
+  const auto& perm = permutationOf(w.seed, nodes[i].hash);
   for (int j = 0; j < 4; ++j) {
     const uint64_t rc = r + perm[j] * stride(level);
     if (double(rc) + w.u < tPath) visit(w, level + 1, 4 * node + j, rc, pathMin, kn ? kn->child[j] : -1);

@@ -86,7 +86,7 @@ struct alignas(32) HtNode {
   float maxv;  // environment tree
   glm::vec2 cosSinRadius;
   float avgv;  // environment tree
-  float unused;
+  uint32_t hash;  // HtPoint::nodeHash, the pixel-independent part of the node's permutation
 };
 struct HtNodes {
   uint64_t treeId = 0;  // MaxAvgTree::id of the tree it packs
@@ -182,6 +182,11 @@ class HtPoint {
   uint64_t faceDigit(uint32_t pixelSeed, int face) const;
   std::array<uint8_t, 12> faceDigits(uint32_t pixelSeed) const;
   static int digit(uint32_t pixelSeed, int level, uint64_t node, int child);
+  // The digits a node gives its children: one of the 24 permutations, drawn
+  // by a hash of the pixel seed and nodeHash, the part no pixel changes.
+  static const std::array<uint8_t, 4>& permutation(uint32_t pixelSeed, int level, uint64_t node);
+  static const std::array<uint8_t, 4>& permutationOf(uint32_t pixelSeed, uint32_t nodeHash);
+  static uint32_t nodeHash(int level, uint64_t node);
 
   static constexpr double kFaceSolidAngle = 4.0 * 3.14159265358979323846 / 12.0;
 
@@ -221,7 +226,6 @@ class HtPoint {
   float bound(int level, uint64_t node, float& brdfBound, int& visibility) const;
   // leafValue with the leaf's BRDF bound and visibility class known.
   float leafValue(uint64_t leaf, float pathBound, float brdfBound, int visibility) const;
-  static const std::array<uint8_t, 4>& permutation(uint32_t pixelSeed, int level, uint64_t node);
   void visitVirtual(Walk& w, int level, uint64_t vnode, uint64_t r, float h, uint64_t leaf, uint64_t sx, uint64_t sy) const;
   bool stopEarly(Walk& w, int level, uint64_t node, uint64_t r, float pathMin, float brdfBound, int visibility) const;
   void estimateBudget();

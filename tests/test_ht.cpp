@@ -280,6 +280,13 @@ TEST(Ht, NodeRecordsPackGeometryAndTrees) {
     ASSERT_EQ(n.maxv, s.scene.environment.tree.maxv[i]) << i;
     ASSERT_EQ(n.avgv, s.scene.environment.tree.avgv[i]) << i;
   }
+  // Each record's hash gives the permutation the node's level and index do.
+  for (int level = 0; level <= order; ++level)
+    for (uint64_t p = 0; p < MaxAvgTree::levelSize(level); ++p)
+      for (uint32_t seed : {0u, 7u, 0x9e3779b9u})
+        ASSERT_EQ(HtPoint::permutationOf(seed, nodes->data()[MaxAvgTree::levelOffset(level) + p].hash),
+                  HtPoint::permutation(seed, level, p))
+            << "level " << level << " node " << p;
   EXPECT_THROW(buildHtNodes(*buildHtGeometry(order + 1), s.scene.environment.tree), Error);
 
   const HtOptions opt = optionsFor(true);
