@@ -4,6 +4,10 @@
 #include <cmath>
 #include <memory>
 
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
 #include <glm/geometric.hpp>
 #include <tbb/parallel_for.h>
 
@@ -178,7 +182,10 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt, 
     tableX = glm::length(tangent) > 1e-6f ? glm::normalize(tangent) : frame.s;
     tableY = glm::cross(n, tableX);
   }
-  if (options.visibility) caps = visibilityCaps(scene, sp, geometry);
+  if (options.visibility) {
+    caps = visibilityCaps(scene, sp, geometry);
+    buildCapLanes();
+  }
   if (options.budgetRefinements >= 0) estimateBudget();
 }
 
@@ -240,7 +247,50 @@ float HtPoint::brdfBound(uint64_t i, float& diffuse) const {
   return b;
 }
 
+void HtPoint::buildCapLanes() {
+  CapLanes& c = capLanes_;
+  c.groups = 0;
+#if defined(__SSE2__)
+  if (caps.size() > size_t(kCapLanes)) return;
+  c.groups = int(caps.size() + 3) / 4;
+  c.x.fill(0.0f), c.y.fill(0.0f), c.z.fill(0.0f);
+  for (int l = 0; l <= geometry.order; ++l) c.inside[l].fill(2.0f), c.outside[l].fill(2.0f);
+  for (size_t k = 0; k < caps.size(); ++k) {
+    c.x[k] = caps[k].axis.x, c.y[k] = caps[k].axis.y, c.z[k] = caps[k].axis.z;
+    for (int l = 0; l <= geometry.order; ++l) {
+      c.inside[l][k] = caps[k].cosInside[l];
+      c.outside[l][k] = caps[k].cosOutside[l];
+    }
+  }
+#endif
+}
+
+// Which cap holds the cone does not matter, so four are tested at once
+// where the vector unit allows: the same dot products, lane by lane, as
+// glm::dot's ((x + y) + z).
 int HtPoint::visibilityClass(const glm::vec3& axis, int level) const {
+#if defined(__SSE2__)
+  const CapLanes& c = capLanes_;
+  if (c.groups > 0 && level <= geometry.order) {
+    const __m128 x = _mm_set1_ps(axis.x), y = _mm_set1_ps(axis.y), z = _mm_set1_ps(axis.z);
+    const auto dot = [&](int g) {
+      const __m128 xy = _mm_add_ps(_mm_mul_ps(x, _mm_load_ps(&c.x[4 * g])), _mm_mul_ps(y, _mm_load_ps(&c.y[4 * g])));
+      return _mm_add_ps(xy, _mm_mul_ps(z, _mm_load_ps(&c.z[4 * g])));
+    };
+    const float* inside = c.inside[level].data();
+    const float* outside = c.outside[level].data();
+    const __m128 d0 = dot(0);
+    __m128 in = _mm_cmpge_ps(d0, _mm_load_ps(inside));
+    __m128 partial = _mm_cmpgt_ps(d0, _mm_load_ps(outside));
+    if (c.groups > 1) {
+      const __m128 d1 = dot(1);
+      in = _mm_or_ps(in, _mm_cmpge_ps(d1, _mm_load_ps(inside + 4)));
+      partial = _mm_or_ps(partial, _mm_cmpgt_ps(d1, _mm_load_ps(outside + 4)));
+    }
+    if (_mm_movemask_ps(in) != 0) return 0;
+    return _mm_movemask_ps(partial) != 0 ? 2 : 1;
+  }
+#endif
   bool partial = false;
   for (const Cap& c : caps) {
     float d = glm::dot(axis, c.axis);

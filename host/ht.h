@@ -251,6 +251,16 @@ class HtPoint {
     float a2, a2Minus1, f0, oneMinusF0;  // GGX
     float fourCosO;
   } boundTerms_{};
+  // Up to eight caps as two groups of four lanes, for visibilityClass to
+  // test a group at once: lane k of group g is cap 4g + k; padding lanes
+  // (axis 0, thresholds 2) never decide. More caps take the plain loop.
+  static constexpr int kCapLanes = 8;
+  struct CapLanes {
+    int groups = 0;  // 0: the plain loop
+    alignas(16) std::array<float, kCapLanes> x, y, z;
+    alignas(16) std::array<std::array<float, kCapLanes>, 32> inside, outside;
+  } capLanes_;
+  void buildCapLanes();
 };
 
 // HT estimate at a shading point with n expected samples (the `ht*` methods):

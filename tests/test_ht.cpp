@@ -265,6 +265,48 @@ TEST(Ht, LevelRadiusBoundsEveryNode) {
   }
 }
 
+// visibilityClass tests the caps four at a time where it can; with 1, 3,
+// 5, 7 (one or two groups of lanes) and 11 caps (the plain loop) it gives
+// the class the caps' own thresholds give, at every level.
+TEST(Ht, VisibilityClassAgreesWithTheCaps) {
+  const int order = 4;
+  std::mt19937_64 gen(7);
+  std::uniform_real_distribution<float> uni(-1.0f, 1.0f);
+  for (int spheres : {0, 2, 4, 6, 10}) {
+    std::vector<Sphere> occluders;
+    for (int k = 0; k < spheres; ++k) {
+      const glm::vec3 d = glm::normalize(glm::vec3(uni(gen), 0.3f + std::abs(uni(gen)), uni(gen)));
+      occluders.push_back({(1.2f + 2.0f * std::abs(uni(gen))) * d, 0.2f + 0.4f * std::abs(uni(gen)), 0});
+    }
+    const ShadingSetup s = makeSetup("caps", smallSky(order), lambert(0.7f), {0.2f, 1.0f, 0.1f}, occluders);
+    ShadingPoint sp = s.sp;
+    sp.material = &s.scene.materials[0];
+    const HtOptions opt = optionsFor(true);
+    const MethodTables tables = htTables(s.scene, opt);
+    const HtPoint ht(s.scene, sp, opt, tables);
+    ASSERT_EQ(ht.caps.size(), size_t(spheres + 1));  // and the plane's
+    int seen[3] = {0, 0, 0};
+    for (int level = 0; level <= order; ++level)
+      for (uint64_t p = 0; p < healpix::pixelCount(level); ++p) {
+        const glm::vec3& c = ht.geometry.centers[MaxAvgTree::levelOffset(level) + p];
+        int expected = 1;
+        for (const Cap& cap : ht.caps) {
+          const float d = glm::dot(c, cap.axis);
+          if (d >= cap.cosInside[level]) {
+            expected = 0;
+            break;
+          }
+          if (d > cap.cosOutside[level]) expected = 2;
+        }
+        ASSERT_EQ(ht.visibilityClass(c, level), expected) << spheres << " spheres, level " << level << " node " << p;
+        ++seen[expected];
+      }
+    EXPECT_GT(seen[0], 0) << spheres;
+    EXPECT_GT(seen[1], 0) << spheres;
+    EXPECT_GT(seen[2], 0) << spheres;
+  }
+}
+
 // The traversal's packed node records hold the geometry's and the trees'
 // values unchanged, and an HtPoint refuses records of another map.
 TEST(Ht, NodeRecordsPackGeometryAndTrees) {
