@@ -161,6 +161,10 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt, 
       nodes(tables.nodes().data()) {
   if (tables.nodes().treeId != env.tree.id || geometry.order != env.order)
     throw Error("internal: HT tables prepared for another environment");
+  if (options.sphereSequence) {
+    sequenceArea_ = 12.0 * kFaceSolidAngle;
+    sequenceRoots_ = 12;
+  }
   n = frame.n;
   wo = glm::normalize(toFloat(env.toHealpixFrame(sp.wo)));
   woLocal = frame.toLocal(wo);
@@ -526,9 +530,11 @@ void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin
   // accepts nothing, and its bound need not be computed.
   const double tPath = threshold(pathMin);
   const auto& perm = permutationOf(w.seed, nodes[i].hash);
+  const uint64_t step = stride(level);
+  const double u = w.u;
   for (int j = 0; j < 4; ++j) {
-    const uint64_t rc = r + perm[j] * stride(level);
-    if (double(rc) + w.u < tPath) visit(w, level + 1, 4 * node + j, rc, pathMin, kn ? kn->child[j] : -1);
+    const uint64_t rc = r + perm[j] * step;
+    if (double(rc) + u < tPath) visit(w, level + 1, 4 * node + j, rc, pathMin, kn ? kn->child[j] : -1);
   }
 }
 

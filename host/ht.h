@@ -160,11 +160,9 @@ class HtPoint {
   double budgetEstimate() const { return cEst_; }
   double scale() const { return s_; }
   // T(h) = s h A, A the measure one candidate sequence covers.
-  double threshold(float h) const {
-    return s_ * double(h) * (options.sphereSequence ? 12.0 * kFaceSolidAngle : kFaceSolidAngle);
-  }
+  double threshold(float h) const { return s_ * double(h) * sequenceArea_; }
   // Candidates of a level-l node are r + k * stride(l).
-  uint64_t stride(int level) const { return uint64_t(options.sphereSequence ? 12 : 1) << (2 * level); }
+  uint64_t stride(int level) const { return sequenceRoots_ << (2 * level); }
 
   // Upper bound of the product over a node (level <= environment order).
   float bound(int level, uint64_t node) const;
@@ -246,6 +244,9 @@ class HtPoint {
   std::array<int32_t, 12> budgetFace_{-1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1};
   double cEst_ = 1.0;
   double s_ = 0.0;
+  // One candidate sequence covers 12 faces or one.
+  double sequenceArea_ = kFaceSolidAngle;
+  uint64_t sequenceRoots_ = 1;
   struct BoundTerms {
     float diffuse, phong;                 // luminance x normalisation of the Lambert and Phong lobes
     float a2, a2Minus1, f0, oneMinusF0;  // GGX
