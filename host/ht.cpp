@@ -1,6 +1,7 @@
 #include "ht.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <memory>
 
@@ -430,7 +431,7 @@ void HtPoint::estimateBudget() {
   };
   // The heap's order: the larger mass first, then the smaller index.
   const auto before = [](const Entry& a, const Entry& b) {
-    return a.mass < b.mass || (a.mass == b.mass && a.index > b.index);
+    return (a.mass < b.mass) | ((a.mass == b.mass) & (a.index > b.index));  // no branch of its own
   };
   thread_local std::vector<Entry> heap;
   std::vector<BudgetNode>& nodes = budget_;
@@ -532,9 +533,17 @@ void HtPoint::visit(Walk& w, int level, uint64_t node, uint64_t r, float pathMin
   const auto& perm = permutationOf(w.seed, nodes[i].hash);
   const uint64_t step = stride(level);
   const double u = w.u;
+  // Which children pass, without a branch per child: the walk's branches
+  // are hard to predict, and a missed one costs more than the tests.
+  std::array<uint64_t, 4> rc;
+  unsigned pass = 0;
   for (int j = 0; j < 4; ++j) {
-    const uint64_t rc = r + perm[j] * step;
-    if (double(rc) + u < tPath) visit(w, level + 1, 4 * node + j, rc, pathMin, kn ? kn->child[j] : -1);
+    rc[j] = r + perm[j] * step;
+    pass |= unsigned(double(rc[j]) + u < tPath) << j;
+  }
+  for (; pass != 0; pass &= pass - 1) {
+    const int j = std::countr_zero(pass);
+    visit(w, level + 1, 4 * node + j, rc[j], pathMin, kn ? kn->child[j] : -1);
   }
 }
 
