@@ -10,6 +10,10 @@ layout(set = 0, binding = HT_BINDING_SPHERES, scalar) readonly buffer SphereBuff
 layout(set = 0, binding = HT_BINDING_PLANES, scalar) readonly buffer PlaneBuffer { GpuPlane planes[]; };
 layout(set = 0, binding = HT_BINDING_PIXELS, scalar) writeonly buffer PixelBuffer { GpuPixel pixels[]; };
 layout(push_constant, scalar) uniform PushBlock { GpuPush pc; };
+// The method as a specialization constant (HT_METHOD_*; HT_METHOD_ANY: the
+// push constant's): lavapipe compiles every branch of a shader, so each
+// method gets a pipeline that holds its own code only.
+layout(constant_id = HT_SPEC_METHOD) const uint kSpecializedMethod = HT_METHOD_ANY;
 // The large arrays through their texel views (true) or their chunks' device
 // addresses (false), chosen per scene by the host.
 layout(constant_id = HT_SPEC_TEXELS) const bool kTexels = false;

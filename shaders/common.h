@@ -275,15 +275,13 @@ struct GpuHtPending {
 // accepted in, or a biased stop, one averaged sample. A pixel's pending samples and
 // then its leaves fill HT_QUEUE_BYTES of GpuPush::htPending.
 struct GpuHtLeaf {
-  uint64_t r;       // the node's lowest candidate
+  uint r;     // the node's lowest candidate (data levels: below 12 x 4^13 < 2^32)
   uint node;
-  uint level;
-  float h;          // a leaf: the path's smallest bound, then its value; a stop: its sample's h
-  float brdfBound;  // a leaf: HT's BRDF bound over it
-  uint visibility;  // a leaf: its visibility class
-  uint stop;        // 1: a biased stop
+  float h;    // a leaf: the path's smallest bound, then its value; a stop: its sample's h
+  uint kind;  // the level, a leaf's visibility class << 8, HT_LEAF_STOP for a biased stop
 };
-#define HT_QUEUE_BYTES (HT_PENDING_SLOTS * 64 + HT_LEAF_SLOTS * 32)
+#define HT_LEAF_STOP 0x10000u
+#define HT_QUEUE_BYTES (HT_PENDING_SLOTS * 64 + HT_LEAF_SLOTS * 16)
 #define HT_MAX_TILE_SIDE 256  // ht*: tiles of at most 256 x 256 pixels, for their queues
 
 // Per tile pixel, kept from one dispatch of the tile to the next. A pixel's
@@ -498,7 +496,7 @@ static_assert(sizeof(GpuPixelState) == 208 && offsetof(GpuPixelState, htCellNode
               offsetof(GpuPixelState, htNode) == 72 && offsetof(GpuPixelState, htPathMin) == 104);
 static_assert(sizeof(GpuTsisSlot) == 56 && offsetof(GpuTsisSlot, energy) == 24 && offsetof(GpuTsisSlot, cdf) == 48);
 static_assert(offsetof(GpuPush, htFlags) == 36 && offsetof(GpuPush, htSampleLog) == 52);
-static_assert(sizeof(GpuHtLeaf) == 32 && offsetof(GpuHtLeaf, h) == 16);
+static_assert(sizeof(GpuHtLeaf) == 16 && offsetof(GpuHtLeaf, h) == 8);
 static_assert(sizeof(GpuHtPending) == 64 && offsetof(GpuHtPending, cellOrder) == 24 &&
               offsetof(GpuHtPending, brdfDir) == 52);
 static_assert(sizeof(GpuHtSample) == 32 && offsetof(GpuHtSample, candidate) == 16 && offsetof(GpuHtSample, level) == 24);

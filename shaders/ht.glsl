@@ -43,6 +43,17 @@ const double kHtFourPi = 12.566370614359172953850573533118lf;
 const float kHtFourPi = 12.566370614359172953850573533118;
 #endif
 
+// The method's switches: constants where the method is specialized, so
+// that the driver drops the code of the variants not run.
+bool htVisibility() {
+  if (kSpecializedMethod == HT_METHOD_ANY) return (pc.htFlags & HT_FLAG_VISIBILITY) != 0u;
+  return kSpecializedMethod == HT_METHOD_HT_VIS || kSpecializedMethod == HT_METHOD_HT_VIS_BIASED;
+}
+bool htBiased() {
+  if (kSpecializedMethod == HT_METHOD_ANY) return (pc.htFlags & HT_FLAG_BIASED) != 0u;
+  return kSpecializedMethod == HT_METHOD_HT_BIASED || kSpecializedMethod == HT_METHOD_HT_VIS_BIASED;
+}
+
 layout(buffer_reference, scalar, buffer_reference_align = 4) writeonly buffer HtSampleLog { GpuHtSample s[]; };
 
 float htTreeMax(uint i) {
@@ -224,7 +235,7 @@ HtNode htNode(uint level, uint node, bool withValue) {
   n.envAvg = treeAvg(n.index);
   n.brdfBound = htBrdfBound(n.index);
   n.brdfValue = withValue ? htBrdfValue(n.centre) : 0.0;
-  n.visibility = (ht.flags & HT_FLAG_VISIBILITY) != 0u ? htVisibilityClass(n.centre, level) : 1u;
+  n.visibility = htVisibility() ? htVisibilityClass(n.centre, level) : 1u;
   precise float b = n.envMax * n.brdfBound;
   n.bound = n.envMax <= 0.0 || (b > 0.0 && n.visibility == 0u) ? 0.0 : b;
   return n;
@@ -262,7 +273,7 @@ void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
   ht.area = (ht.flags & HT_FLAG_SPHERE_SEQUENCE) != 0u ? sphere : face;
   if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u) ht.table = htTableFrame(gHtMaterial, ht.woLocal, ht.wo, ht.n, ht.frame.s);
   ht.capCount = 0u;
-  if ((ht.flags & HT_FLAG_VISIBILITY) != 0u) {
+  if (htVisibility()) {
     // Seen from the shadow rays' origin, as on the CPU.
     precise vec3 origin = offsetRayOrigin(position, normal);
     for (uint k = 0u; k < scene.sphereCount; ++k) {
@@ -441,8 +452,9 @@ void htShadePending(Shading sh, inout Sampler smp) {
 // The smallest bound on the path, per data level (the one value the hash cannot give back).
 float gHtPathMin[HT_MAX_ORDER + 1];
 
-// Per level of a walk's path: the node's children's permutation and its
-// lowest candidate, so that a step to the next sibling or up to the parent
+// Per level of a walk's path: the node's children's permutation (on data
+// levels, with the passing children left above it) and its lowest
+// candidate, so that a step to the next sibling or up to the parent
 // neither hashes nor divides. The walk over the data levels keeps the
 // levels below the map's order, the walk through a leaf's cells the rest.
 uint gHtWalkPerm[HT_MAX_WALK_LEVEL];
@@ -487,13 +499,84 @@ bool htNextBelow(uint top, inout uint level, inout uint64_t node, inout uint64_t
   return true;
 }
 
-// The data walk's next node after (level, node) and everything below it;
-// after the last face, face 12.
-void htNextSibling(uint64_t faceDigits, inout uint face, inout uint level, inout uint64_t node, inout uint64_t r) {
-  if (htNextBelow(0u, level, node, r)) return;
-  ++face;
-  node = uint64_t(face);
-  r = (faceDigits >> (4u * face)) & 15ul;
+// The data walk visits only the children whose lowest candidate passes
+// the threshold of their parent's path bound (HtPoint::visit's children
+// test: the others accept nothing below), found per family at once, as on
+// the CPU: per data level of the path, the passing children not yet
+// visited (bits 8 + j of gHtWalkPerm's word, above the permutation), and
+// a bit per level that has some left. So a step of the walk is one node,
+// with no loop over the failing siblings (a loop's iterations cost every
+// lane of a SIMD group the slowest lane's count).
+uint gHtWalkLevels = 0u;
+
+// Bit j: child j of the node at `level` with lowest candidate r passes tPath.
+uint htPassingChildren(uint perm, uint level, uint64_t r, hreal tPath) {
+  uint64_t stride = htStride(level);
+  precise hreal r0 = hreal(r + uint64_t(htDigit(perm, 0u)) * stride) + ht.u;
+  precise hreal r1 = hreal(r + uint64_t(htDigit(perm, 1u)) * stride) + ht.u;
+  precise hreal r2 = hreal(r + uint64_t(htDigit(perm, 2u)) * stride) + ht.u;
+  precise hreal r3 = hreal(r + uint64_t(htDigit(perm, 3u)) * stride) + ht.u;
+  return (r0 < tPath ? 1u : 0u) | (r1 < tPath ? 2u : 0u) | (r2 < tPath ? 4u : 0u) | (r3 < tPath ? 8u : 0u);
+}
+
+// Takes the first of the children left at `level`: child j, and its lowest candidate.
+uint htTakeChild(uint level) {
+  uint word = gHtWalkPerm[level];
+  uint j = uint(findLSB(word >> 8u));
+  word &= ~(0x100u << j);
+  gHtWalkPerm[level] = word;
+  if ((word >> 8u) == 0u) gHtWalkLevels &= ~(1u << level);
+  return j;
+}
+
+// Down to the first passing child of (level, node), whose path bound gives
+// tPath; false when none passes.
+bool htDescendPassing(uint seed, hreal tPath, inout uint level, inout uint64_t node, inout uint64_t r) {
+  uint perm = htPermutation(seed, level, node);
+  uint pass = htPassingChildren(perm, level, r, tPath);
+  if (pass == 0u) return false;
+  uint j = uint(findLSB(pass));
+  pass &= pass - 1u;
+  gHtWalkPerm[level] = perm | (pass << 8u);
+  gHtWalkR[level] = r;
+  if (pass != 0u) gHtWalkLevels |= 1u << level;
+  r += uint64_t(htDigit(perm, j)) * htStride(level);
+  node = node * 4ul + uint64_t(j);
+  ++level;
+  return true;
+}
+
+// The data walk's next node after (level, node) and everything below it:
+// the next passing child of the deepest node on the path with one left;
+// after the face's last, the next face (after the last face, face 12).
+void htNextPassing(uint64_t faceDigits, inout uint face, inout uint level, inout uint64_t node, inout uint64_t r) {
+  uint below = gHtWalkLevels & ((1u << level) - 1u);
+  if (below == 0u) {
+    ++face;
+    level = 0u;
+    node = uint64_t(face);
+    r = (faceDigits >> (4u * face)) & 15ul;
+    return;
+  }
+  uint p = uint(findMSB(below));
+  uint j = htTakeChild(p);
+  node = ((node >> (2u * (level - p))) << 2u) | uint64_t(j);
+  r = gHtWalkR[p] + uint64_t(htDigit(gHtWalkPerm[p], j)) * htStride(p);
+  level = p + 1u;
+}
+
+// The children left per level for a data walk resumed at (level, node),
+// from the path's permutations, candidates and bounds.
+void htRestorePassing(uint level, uint64_t node) {
+  gHtWalkLevels = 0u;
+  for (uint l = 0u; l < level; ++l) {
+    uint child = uint(node >> (2u * (level - l - 1u))) & 3u;
+    uint perm = gHtWalkPerm[l] & 0xFFu;
+    uint pass = htPassingChildren(perm, l, gHtWalkR[l], htThreshold(gHtPathMin[l]));
+    pass &= ~((2u << child) - 1u);
+    gHtWalkPerm[l] = perm | (pass << 8u);
+    if (pass != 0u) gHtWalkLevels |= 1u << l;
+  }
 }
 
 // False when the pixel has nothing to sample.
@@ -525,22 +608,25 @@ bool htBegin(Shading sh, vec3 position, vec3 normal, vec3 wo, uint spp, inout ui
   return true;
 }
 
-// HtPoint::leafValue of a recorded leaf.
+// HtPoint::leafValue of a recorded leaf (the BRDF bound again: the same
+// value as the walk's, in a loop that runs once per leaf, not per node).
 float htLeafValue(GpuHtLeaf leaf) {
   uint i = levelOffset(ht.order) + leaf.node;
+  uint visibility = (leaf.kind >> 8) & 3u;
   float envAvg = treeAvg(i);
-  if (envAvg <= 0.0 || leaf.h <= 0.0 || leaf.brdfBound <= 0.0 || leaf.visibility == 0u) return 0.0;
-  precise float floorBound = pc.htBrdfFloor * leaf.brdfBound;
+  float brdfBound = htBrdfBound(i);
+  if (envAvg <= 0.0 || leaf.h <= 0.0 || brdfBound <= 0.0 || visibility == 0u) return 0.0;
+  precise float floorBound = pc.htBrdfFloor * brdfBound;
   precise float h = envAvg * max(htBrdfValue(htCenter(i)), floorBound);
-  if (leaf.visibility == 2u) h = h * htVisibleFraction(leaf.node);
+  if (visibility == 2u) h = h * htVisibleFraction(leaf.node);
   return min(h, leaf.h);
 }
 
 // The walk over the data levels, up to `steps` steps and until HT_LEAF_SLOTS
 // nodes are recorded (w.leafCount, from 0).
 void htWalk(inout HtWalk w, uint steps, inout uint step) {
-  const bool biased = (ht.flags & HT_FLAG_BIASED) != 0u;
-  const bool visibility = (ht.flags & HT_FLAG_VISIBILITY) != 0u;
+  const bool biased = htBiased();
+  const bool visibility = htVisibility();
   const uint64_t faceDigits = htFaceDigits(w.seed);
   HtLeafList leaves = htLeafList();
   uint face = w.face;
@@ -555,7 +641,9 @@ void htWalk(inout HtWalk w, uint steps, inout uint step) {
     gHtPathMin[level] = pm;
     precise hreal ru = hreal(r) + ht.u;
     precise hreal t = htThreshold(n.bound);
-    bool descend = false;
+    bool descend = false, record = false;
+    uint kind = 0u;
+    float recordH = 0.0;
     if (!(ru >= t)) {
       bool stopped = false;
       if (biased) {
@@ -570,27 +658,25 @@ void htWalk(inout HtWalk w, uint steps, inout uint step) {
           precise hreal th = htThreshold(h);
           precise hreal next = hreal(r) + hreal(htStride(level)) + ht.u;
           stopped = ru >= th || !(next < th);
-          if (stopped && !(ru >= th)) leaves.v[count++] = GpuHtLeaf(r, uint(node), level, h, 0.0, 0u, 1u);
+          if (stopped && !(ru >= th)) {
+            record = true;
+            kind = level | HT_LEAF_STOP;
+            recordH = h;
+          }
         }
       }
       if (!stopped && level < ht.order) {
         descend = true;
       } else if (!stopped) {
-        leaves.v[count++] = GpuHtLeaf(r, uint(node), level, pm, n.brdfBound, n.visibility, 0u);
+        record = true;
+        kind = level | n.visibility << 8;
+        recordH = pm;
       }
     }
-    if (descend) {
-      htDescend(w.seed, level, node, r);
-    } else {
-      htNextSibling(faceDigits, face, level, node, r);
-    }
-    // HtPoint::visit's children test: a data node whose lowest candidate
-    // misses the threshold of its parent's path bound accepts nothing below.
-    while (face < 12u && level > 0u) {
-      precise hreal ru = hreal(r) + ht.u;
-      if (ru < htThreshold(gHtPathMin[level - 1u])) break;
-      htNextSibling(faceDigits, face, level, node, r);
-    }
+    // One store for both kinds: lavapipe stores to a buffer lane by lane, in a loop per word.
+    if (record) leaves.v[count++] = GpuHtLeaf(uint(r), uint(node), recordH, kind);
+    bool moved = descend && htDescendPassing(w.seed, htThreshold(pm), level, node, r);
+    if (!moved) htNextPassing(faceDigits, face, level, node, r);
   }
   w.face = face;
   w.level = level;
@@ -600,7 +686,7 @@ void htWalk(inout HtWalk w, uint steps, inout uint step) {
   w.leafNext = 0u;
   // The leaves' values, in a loop of their own: h becomes HtPoint::leafValue.
   for (uint k = 0u; k < count; ++k)
-    if (leaves.v[k].stop == 0u) leaves.v[k].h = htLeafValue(leaves.v[k]);
+    if ((leaves.v[k].kind & HT_LEAF_STOP) == 0u) leaves.v[k].h = htLeafValue(leaves.v[k]);
 }
 
 // The cells' loop: the recorded nodes in order, up to `steps` steps and
@@ -620,10 +706,10 @@ void htCells(inout HtWalk w, uint steps, inout uint step) {
     bool descend = false;
     if (!w.cellActive) {
       GpuHtLeaf leaf = leaves.v[w.leafNext++];
-      level = leaf.level;
+      level = leaf.kind & 0xFFu;
       node = uint64_t(leaf.node);
-      r = leaf.r;
-      if (leaf.stop != 0u) {
+      r = uint64_t(leaf.r);
+      if ((leaf.kind & HT_LEAF_STOP) != 0u) {
         // A biased stop: its one candidate, with the node's average.
         accept = averaged = true;
         acceptT = htThreshold(leaf.h);
@@ -706,7 +792,10 @@ void htCells(inout HtWalk w, uint steps, inout uint step) {
 bool htSteps(Shading sh, inout HtWalk w, uint steps, inout Sampler smp, out uint taken) {
   uint step = 0u;
   if (w.cellActive) htRestorePath(w.seed, ht.order, w.cellLevel, w.cellNode, w.cellR);
-  if (w.face < 12u) htRestorePath(w.seed, 0u, w.level, w.node, w.r);
+  if (w.face < 12u) {
+    htRestorePath(w.seed, 0u, w.level, w.node, w.r);
+    htRestorePassing(w.level, w.node);
+  }
   bool finished = w.face == 12u && !w.cellActive && w.leafNext == w.leafCount;
   while (step < steps && !finished) {
     if (!w.cellActive && w.leafNext == w.leafCount) htWalk(w, steps, step);

@@ -12,10 +12,6 @@
 
 layout(local_size_x = HT_WORKGROUP_SIZE, local_size_y = HT_WORKGROUP_SIZE) in;
 
-// The method as a specialization constant (HT_METHOD_*; HT_METHOD_ANY: the
-// push constant's): lavapipe compiles every branch of a shader, so each
-// method gets a pipeline that holds its own code only.
-layout(constant_id = HT_SPEC_METHOD) const uint kSpecializedMethod = HT_METHOD_ANY;
 // The method, read where it is used (the driver folds the specialization
 // constant there, and drops the other methods' code).
 uint pixelMethod() { return kSpecializedMethod == HT_METHOD_ANY ? pc.method : kSpecializedMethod; }
