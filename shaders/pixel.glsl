@@ -1,7 +1,7 @@
 // The frame of every method's compute shader: one invocation per pixel of
 // the current tile, its estimate spread over batches (one dispatch each) so
 // that no dispatch runs long. A shader's main() is
-//   if (!pixelStart(job)) return;            // outside the tile
+//   if (!pixelStart(job)) return;            // outside the tile, or done
 //   if (job.shade) { ...begin on job.fresh, continue while !gPixel.done... }
 //   pixelEnd(job, estimate);
 // and the state between batches is GpuPixelState (shaders/common.h).
@@ -42,6 +42,9 @@ bool pixelStart(out PixelJob job) {
   uint x = pc.tileX + local.x;
   uint y = pc.tileY + local.y;
   job.slot = local.y * pc.tileWidth + local.x;
+  job.fresh = pc.batch == 0u;
+  // A pixel done in an earlier batch keeps the result it wrote then.
+  if (!job.fresh && pc.pixelState.s[job.slot].done != 0u) return false;
   job.cut = false;
   job.background = vec3(0.0);
   job.planar = false;
@@ -51,7 +54,6 @@ bool pixelStart(out PixelJob job) {
   Ray ray = cameraRay(px, py);
   Hit hit;
   job.shade = intersectScene(ray, 0.0, kInfinity, hit);
-  job.fresh = pc.batch == 0u;
   if (!job.shade) {
     job.background = envEval(ray.dir);
     gPixel.done = 1u;
@@ -116,6 +118,7 @@ void pixelEnd(PixelJob job, vec3 estimate) {
   result.shadowRays = 0u;
   result.htNodes = 0u;
   bool done = true;
+  if (!job.shade) pc.pixelState.s[job.slot].done = 1u;
   if (job.shade) {
     gPixel.shadowRays = gShadowRays;
     pc.pixelState.s[job.slot] = gPixel;
