@@ -158,8 +158,9 @@ uint32_t firstBatchLimit(const RenderSettings& s, int envOrder, size_t shapes) {
     case Method::HtBiased:
     // A step of the walk is one node: its loop, and the caps' (ht-vis);
     // its share of the leaves' visible fractions and of the samples' shading
-    // grows with the samples per pixel (measured: a batch of 4096 steps ran
-    // within llvmpipe's loops at 64 spp in spheres.json, 1024 at 256, 512 at 1024).
+    // grows with the samples per pixel (measured, ht-vis on spheres.json at
+    // 96x48: the longest batch within llvmpipe's loop limit was 4096 steps at
+    // 64 spp, 1024 at 256, 512 at 1024).
     case Method::HtVisBiased: cost = (4 + 2 * shapes) * std::max<uint64_t>(1, spp / 64); break;
     // Per direction a descent of four children a level, each under the
     // caps, and a few binary searches.

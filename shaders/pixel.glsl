@@ -118,8 +118,9 @@ void pixelEnd(PixelJob job, vec3 estimate) {
   result.shadowRays = 0u;
   result.htNodes = 0u;
   bool done = true;
-  if (!job.shade) pc.pixelState.s[job.slot].done = 1u;
-  if (job.shade) {
+  if (!job.shade) {
+    pc.pixelState.s[job.slot].done = 1u;  // so that the later batches skip it
+  } else {
     gPixel.shadowRays = gShadowRays;
     pc.pixelState.s[job.slot] = gPixel;
     done = gPixel.done != 0u;
