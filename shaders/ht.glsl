@@ -29,10 +29,10 @@
 
 #define HT_MAX_FRONTIER (12 + 4 * HT_MAX_BUDGET_REFINEMENTS)
 
-// The 24 permutations of {0, 1, 2, 3} in lexicographic order, digit j in bits 2j..2j+1.
-const uint kHtPermutations[24] = uint[24](0xE4u, 0xB4u, 0xD8u, 0x78u, 0x9Cu, 0x6Cu, 0xE1u, 0xB1u, 0xC9u, 0x39u,
-                                          0x8Du, 0x2Du, 0xD2u, 0x72u, 0xC6u, 0x36u, 0x4Eu, 0x1Eu, 0x93u, 0x63u,
-                                          0x87u, 0x27u, 0x4Bu, 0x1Bu);
+// The 24 permutations of {0, 1, 2, 3} in lexicographic order, digit j in
+// bits 2j..2j+1, a byte each, eight to a word: read by shifts, where an
+// array indexed per lane is read lane by lane (llvmpipe).
+const uint64_t kHtPermutations[3] = uint64_t[3](0xB1E16C9C78D8B4E4ul, 0x36C672D22D8D39C9ul, 0x1B4B278763931E4Eul);
 
 // Float constants by their bits: the C++ literals round once, GLSL's may round twice.
 #define kHtCapMargin uintBitsToFloat(0x3A83126Fu)     // 1e-3f
@@ -118,7 +118,9 @@ uint64_t htStride(uint level) {
 
 uint htPermutation(uint seed, uint level, uint64_t node) {
   uint h = pcgHash(seed ^ pcgHash(level ^ pcgHash(uint(node) ^ pcgHash(uint(node >> 32)))));
-  return kHtPermutations[h % 24u];
+  uint i = h % 24u;
+  uint64_t word = i < 8u ? kHtPermutations[0] : i < 16u ? kHtPermutations[1] : kHtPermutations[2];
+  return uint(word >> (8u * (i & 7u))) & 0xFFu;
 }
 uint htDigit(uint permutation, uint j) { return (permutation >> (2u * j)) & 3u; }
 
@@ -328,8 +330,14 @@ hreal htEstimateBudget() {
     }
     if (k >= refinements || live == 0u) break;
     uint best = 0u;
-    for (uint i = 1u; i < size; ++i)
-      if (gHtFrontierMass[best] < gHtFrontierMass[i]) best = i;
+    hreal bestMass = gHtFrontierMass[0];
+    for (uint i = 1u; i < size; ++i) {
+      hreal mass = gHtFrontierMass[i];
+      if (bestMass < mass) {
+        best = i;
+        bestMass = mass;
+      }
+    }
     uint level = gHtFrontierLevel[best];
     uint node = gHtFrontierNode[best];
     if (level >= ht.order) break;
