@@ -34,16 +34,24 @@ const float kHpTiny = 1e-15;
 #endif
 const hreal kHpNoSinTheta = -5.0;
 
-const int kJrll[12] = int[12](2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4);
-const int kJpll[12] = int[12](1, 3, 5, 7, 0, 2, 4, 6, 1, 3, 5, 7);
+// The reference's jrll (2, 2, 2, 2, 3, ..., 4) and jpll (1, 3, 5, 7, 0, 2,
+// 4, 6, 1, 3, 5, 7) per face, by arithmetic: llvmpipe builds a constant
+// array indexed per lane afresh at each use, lane by lane.
+int hpJrll(uint face) { return 2 + int(face >> 2); }
+int hpJpll(uint face) { return int(2u * (face & 3u) + 1u - ((face >> 2) & 1u)); }
 
 #if HT_FP64
 // atan(t) for t in [0, 1]: atan(c) + atan((t - c) / (1 + t c)) with c the
 // nearest multiple of 1/8, the remainder (|u| <= 1/16) by its Taylor series
 // to u^15 (truncation below 2^-64 relative).
-const double kAtanEighths[9] = double[9](0.0lf, 0.12435499454676144lf, 0.24497866312686414lf,
-                                         0.35877067027057225lf, 0.46364760900080609lf, 0.55859931534356244lf,
-                                         0.64350110879328437lf, 0.71882999962162453lf, 0.78539816339744828lf);
+// atan(k / 8) for k = 0..8, by selects rather than a constant array (as hpJrll).
+double atanEighth(int k) {
+  double lo = k <= 1 ? (k == 0 ? 0.0lf : 0.12435499454676144lf)
+                     : k == 2 ? 0.24497866312686414lf : k == 3 ? 0.35877067027057225lf : 0.46364760900080609lf;
+  double hi = k <= 6 ? (k == 5 ? 0.55859931534356244lf : 0.64350110879328437lf)
+                     : k == 7 ? 0.71882999962162453lf : 0.78539816339744828lf;
+  return k <= 4 ? lo : hi;
+}
 precise double atanUnit(double t) {
   int k = int(floor(t * 8.0lf + 0.5lf));
   double c = double(k) * 0.125lf;
@@ -56,7 +64,7 @@ precise double atanUnit(double t) {
   p = p * u2 - 1.0lf / 7.0lf;
   p = p * u2 + 1.0lf / 5.0lf;
   p = p * u2 - 1.0lf / 3.0lf;
-  return kAtanEighths[k] + (u + u * (u2 * p));
+  return atanEighth(k) + (u + u * (u2 * p));
 }
 bool signBit(double x) { return (unpackDouble2x32(x).y & 0x80000000u) != 0u; }
 // atan2 with C's conventions for signed zeros.
@@ -187,7 +195,7 @@ uint vecToPix(uint order, hvec3 v) {
 
 // healpix::faceXYToZPhiSin.
 void faceXYToZPhiSin(uint face, hreal x, hreal y, out hreal z, out hreal phi, out hreal sth) {
-  precise hreal jr = hreal(kJrll[face]) - x - y;
+  precise hreal jr = hreal(hpJrll(face)) - x - y;
   precise hreal nr;
   precise hreal zz;
   precise hreal st = kHpNoSinTheta;
@@ -205,7 +213,7 @@ void faceXYToZPhiSin(uint face, hreal x, hreal y, out hreal z, out hreal phi, ou
     nr = 1.0;
     zz = (2.0 - jr) * kHpTwoThird;
   }
-  precise hreal t = hreal(kJpll[face]) * nr + x - y;
+  precise hreal t = hreal(hpJpll(face)) * nr + x - y;
   if (t < 0.0) t += 8.0;
   if (t >= 8.0) t -= 8.0;
   precise hreal p = nr < kHpTiny ? 0.0 : kHpQuarterPi * t / nr;
