@@ -272,8 +272,9 @@ struct GpuHtPending {
 
 // ht*: a node the walk reached and left to the loops after it: a leaf of
 // the map whose lowest candidate passed its bounds, to be valued and
-// accepted in, or a biased stop, one averaged sample. A pixel's pending samples and
-// then its leaves fill HT_QUEUE_BYTES of GpuPush::htPending.
+// accepted in, or a biased stop, one averaged sample. GpuPush::htPending
+// holds HT_QUEUE_BYTES per tile pixel: every pixel's pending samples, then
+// the leaves, the tile's pixels' k-th side by side (shaders/ht.glsl).
 struct GpuHtLeaf {
   uint r;     // the node's lowest candidate (data levels: below 12 x 4^13 < 2^32)
   uint node;
@@ -422,7 +423,7 @@ struct GpuTsisSlot {
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer TsisScratch { GpuTsisSlot slots[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer PixelStates { GpuPixelState s[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer HtPendingList { GpuHtPending p[]; };
-layout(buffer_reference, scalar, buffer_reference_align = 8) buffer HtLeafList { GpuHtLeaf v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 16) buffer HtLeafRef { GpuHtLeaf v; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer FrontierSceneRef { GpuFrontierScene f; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierNodes { GpuFrontierNode v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierHeaders { GpuFrontierHeader v[]; };

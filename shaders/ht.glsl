@@ -428,13 +428,19 @@ struct HtWalk {
   hreal resumeI;
 };
 
-// The pixel's pending samples and recorded leaves (HT_QUEUE_BYTES).
-uint64_t htQueue() {
-  return uint64_t(pc.htPending) +
-         uint64_t(gl_GlobalInvocationID.y * pc.tileWidth + gl_GlobalInvocationID.x) * uint64_t(HT_QUEUE_BYTES);
+// The pixel's pending samples and recorded leaves (HT_QUEUE_BYTES per tile
+// pixel): the pixels' pending lists one after the other, then leaf k of
+// every pixel side by side, so that the lanes of a SIMD group, which
+// record and read their leaves in step, touch neighbouring records.
+uint htSlot() { return gl_GlobalInvocationID.y * pc.tileWidth + gl_GlobalInvocationID.x; }
+HtPendingList htPendingList() {
+  return HtPendingList(uint64_t(pc.htPending) + uint64_t(htSlot()) * uint64_t(HT_PENDING_SLOTS * 64));
 }
-HtPendingList htPendingList() { return HtPendingList(htQueue()); }
-HtLeafList htLeafList() { return HtLeafList(htQueue() + uint64_t(HT_PENDING_SLOTS * 64)); }
+HtLeafRef htLeaf(uint k) {
+  uint64_t pixels = uint64_t(pc.tileWidth * pc.tileHeight);
+  return HtLeafRef(uint64_t(pc.htPending) + pixels * uint64_t(HT_PENDING_SLOTS * 64) +
+                   (uint64_t(k) * pixels + uint64_t(htSlot())) * 16ul);
+}
 
 // The samples accepted and not yet shaded, in the order accepted.
 uint gHtPending = 0u;
@@ -636,7 +642,6 @@ void htWalk(inout HtWalk w, uint steps, inout uint step) {
   const bool biased = htBiased();
   const bool visibility = htVisibility();
   const uint64_t faceDigits = htFaceDigits(w.seed);
-  HtLeafList leaves = htLeafList();
   uint face = w.face;
   uint level = w.level;
   uint64_t node = w.node;
@@ -682,7 +687,10 @@ void htWalk(inout HtWalk w, uint steps, inout uint step) {
       }
     }
     // One store for both kinds: lavapipe stores to a buffer lane by lane, in a loop per word.
-    if (record) leaves.v[count++] = GpuHtLeaf(uint(r), uint(node), recordH, kind);
+    if (record) {
+      HtLeafRef slot = htLeaf(count++);  // a local: glslang 11.12 crashes on a store through a call's result
+      slot.v = GpuHtLeaf(uint(r), uint(node), recordH, kind);
+    }
     bool moved = descend && htDescendPassing(w.seed, htThreshold(pm), level, node, r);
     if (!moved) htNextPassing(faceDigits, face, level, node, r);
   }
@@ -693,14 +701,15 @@ void htWalk(inout HtWalk w, uint steps, inout uint step) {
   w.leafCount = count;
   w.leafNext = 0u;
   // The leaves' values, in a loop of their own: h becomes HtPoint::leafValue.
-  for (uint k = 0u; k < count; ++k)
-    if ((leaves.v[k].kind & HT_LEAF_STOP) == 0u) leaves.v[k].h = htLeafValue(leaves.v[k]);
+  for (uint k = 0u; k < count; ++k) {
+    HtLeafRef leaf = htLeaf(k);
+    if ((leaf.v.kind & HT_LEAF_STOP) == 0u) leaf.v.h = htLeafValue(leaf.v);
+  }
 }
 
 // The cells' loop: the recorded nodes in order, up to `steps` steps and
 // until the pending list is full.
 void htCells(inout HtWalk w, uint steps, inout uint step) {
-  HtLeafList leaves = htLeafList();
   HtPendingList pending = htPendingList();
   for (; step < steps && (w.cellActive || w.leafNext < w.leafCount) && gHtPending < uint(HT_PENDING_SLOTS); ++step) {
     // The cell's candidates r, r + step, ... below acceptT are accepted in it
@@ -713,7 +722,7 @@ void htCells(inout HtWalk w, uint steps, inout uint step) {
     vec3 brdfDir = vec3(0.0);
     bool descend = false;
     if (!w.cellActive) {
-      GpuHtLeaf leaf = leaves.v[w.leafNext++];
+      GpuHtLeaf leaf = htLeaf(w.leafNext++).v;
       level = leaf.kind & 0xFFu;
       node = uint64_t(leaf.node);
       r = uint64_t(leaf.r);
