@@ -49,6 +49,23 @@ bool gFrShared;
 FrontierColourNodes gFrColour;
 hreal gFrColourR, gFrColourG, gFrColourB;
 
+// The settings read per node, copied once from GpuFrontierScene (read
+// through a device address, which llvmpipe loads lane by lane at each
+// read): the levels' cone radii (cos, sin), the floor of a partly
+// covered node's factor, the flags.
+float gFrLevelCos[HT_MAX_ORDER + 2];
+float gFrLevelSin[HT_MAX_ORDER + 2];
+float gFrMinPartial;
+uint gFrFlags;
+void frontierSettings() {
+  for (uint l = 0u; l <= uint(HT_MAX_ORDER) + 1u; ++l) {
+    gFrLevelCos[l] = gFs.levelCosRadius[l];
+    gFrLevelSin[l] = gFs.levelSinRadius[l];
+  }
+  gFrMinPartial = gFs.minPartialVisibility;
+  gFrFlags = gFs.flags;
+}
+
 // lightCaps: per cap its axis and the sine and cosine of its half-angle
 // less the margin. gFrCaps: the caps the point applies (bits).
 uint gFrCapCount;
@@ -111,7 +128,7 @@ void frontierAddCap(vec3 axis, float s0) {
 void frontierCaps(vec3 position, vec3 normal) {
   gFrCapCount = 0u;
   gFrCaps = 0u;
-  if ((gFs.flags & HT_FRONTIER_VISIBILITY) == 0u) return;
+  if ((gFrFlags & HT_FRONTIER_VISIBILITY) == 0u) return;
   precise vec3 origin = offsetRayOrigin(position, normal);
   for (uint k = 0u; k < scene.sphereCount; ++k) {
     GpuSphere sp = spheres[k];
@@ -142,7 +159,7 @@ precise float frontierCosOutside(uint k, float cR, float sR) { return gFrCapCos[
 // frontierVisibility over the caps in `caps`: the class (0 inside one, 1
 // outside all, 2 partly covered) and the node's factor in the density.
 uint frontierClass(vec3 centre, uint level, uint caps, out float factor) {
-  float cR = gFs.levelCosRadius[level], sR = gFs.levelSinRadius[level];
+  float cR = gFrLevelCos[level], sR = gFrLevelSin[level];
   bool partial = false;
   precise float visible = 1.0;
   for (uint k = 0u; k < gFrCapCount; ++k) {
@@ -158,7 +175,7 @@ uint frontierClass(vec3 centre, uint level, uint caps, out float factor) {
       visible = min(visible, 1.0 - min((d - outside) / (min(inside, 1.0) - outside), 1.0));
     }
   }
-  factor = partial ? max(visible, gFs.minPartialVisibility) : 1.0;
+  factor = partial ? max(visible, gFrMinPartial) : 1.0;
   return partial ? 2u : 1u;
 }
 
@@ -170,8 +187,8 @@ uint frontierNodeClass(uint level, uint node, uint caps, out float factor) {
   uint cls = frontierClass(centre, level, caps, factor);
   if (cls != 2u || level > uint(HT_FRONTIER_SHARE_LEVEL) || level >= ht.order) return cls;
   uint first = levelOffset(level + 1u) + 4u * node;
-  float cR0 = gFs.levelCosRadius[level], sR0 = gFs.levelSinRadius[level];
-  float cR = gFs.levelCosRadius[level + 1u], sR = gFs.levelSinRadius[level + 1u];
+  float cR0 = gFrLevelCos[level], sR0 = gFrLevelSin[level];
+  float cR = gFrLevelCos[level + 1u], sR = gFrLevelSin[level + 1u];
   precise float visible[4] = float[4](1.0, 1.0, 1.0, 1.0);
   bool partial[4] = bool[4](false, false, false, false);
   for (uint k = 0u; k < gFrCapCount; ++k) {
@@ -190,14 +207,14 @@ uint frontierNodeClass(uint level, uint node, uint caps, out float factor) {
   }
   precise float share = 0.0;
   for (uint j = 0u; j < 4u; ++j)
-    share += partial[j] && visible[j] > 0.0 ? max(visible[j], gFs.minPartialVisibility) : visible[j];
+    share += partial[j] && visible[j] > 0.0 ? max(visible[j], gFrMinPartial) : visible[j];
   precise float quarter = 0.25 * share;
-  factor = max(quarter, gFs.minPartialVisibility);
+  factor = max(quarter, gFrMinPartial);
   return cls;
 }
 
 uint frontierColourBin(uint i) {
-  if ((gFs.flags & HT_FRONTIER_COLOUR_ORDER) == 0u) return 0u;
+  if ((gFrFlags & HT_FRONTIER_COLOUR_ORDER) == 0u) return 0u;
   uint word = kTexels ? texelFetch(frontierBinsTexels, int(i >> 2)).x : gFs.bins.v[i >> 2];
   return (word >> (8u * (i & 3u))) & 0xFFu;
 }
@@ -321,7 +338,7 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
   if (!(bound > 0.0)) return;
   float vis = 1.0;
   uint cls = parentClass;
-  if ((gFs.flags & HT_FRONTIER_VISIBILITY) == 0u) {
+  if ((gFrFlags & HT_FRONTIER_VISIBILITY) == 0u) {
     cls = 1u;
   } else if (cls == 2u) {
     cls = frontierNodeClass(level, node, gFrCaps, vis);
@@ -522,7 +539,7 @@ void frontierDropOwnPlane() {
 // plane's) on the faces they reach.
 hvec3 frontierApplyCaps(uint table, out hreal colourMass) {
   frontierDropOwnPlane();
-  float cR = gFs.levelCosRadius[0], sR = gFs.levelSinRadius[0];
+  float cR = gFrLevelCos[0], sR = gFrLevelSin[0];
   gFrTouched = 0u;
   hvec3 colourSum = hvec3(0.0);
   colourMass = 0.0;
@@ -818,6 +835,7 @@ void frontierBind(uint slot) {
 bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bool planar, uint slot, uint n,
                    inout uint rng, inout uint htNodes) {
   if (scene.envHasLight == 0u || n == 0u) return false;
+  frontierSettings();
   htInit(position, normal, wo, material);
   frontierCaps(position, normal);
   frontierBind(slot);
@@ -833,7 +851,7 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
   } else {
     frontierRefine(n);
     htNodes += 12u + 4u * tableWord(kFrontierSplits);
-    if ((gFs.flags & HT_FRONTIER_COLOUR_CONTROL) != 0u) colourSum = frontierOwnColourSum(colourMass);
+    if ((gFrFlags & HT_FRONTIER_COLOUR_CONTROL) != 0u) colourSum = frontierOwnColourSum(colourMass);
   }
   frontierSegments();
   if (!(gFrTotal > 0.0)) return false;
@@ -856,6 +874,7 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
 
 // A later batch: the point as the first left it.
 GpuFrontierPoint frontierResume(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, uint slot) {
+  frontierSettings();
   htInit(position, normal, wo, material);
   frontierCaps(position, normal);
   frontierBind(slot);
@@ -905,7 +924,7 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
   }
   // The control variate's M / n, and a shared table's albedo / pi (estimateHtFrontier).
   hvec3 colourScale = hvec3(0.0);
-  if ((gFs.flags & HT_FRONTIER_COLOUR_CONTROL) != 0u) {
+  if ((gFrFlags & HT_FRONTIER_COLOUR_CONTROL) != 0u) {
     vec3 d = sh.material.diffuse;
     colourScale = pt.table != kFrontierNone
                       ? hvec3(mulF(hreal(d.x), hreal(kInvPi)), mulF(hreal(d.y), hreal(kInvPi)), mulF(hreal(d.z), hreal(kInvPi)))
