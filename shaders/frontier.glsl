@@ -52,11 +52,14 @@ hreal gFrColourR, gFrColourG, gFrColourB;
 // The settings read per node, copied once from GpuFrontierScene (read
 // through a device address, which llvmpipe loads lane by lane at each
 // read): the levels' cone radii (cos, sin), the floor of a partly
-// covered node's factor, the flags.
+// covered node's factor, the flags, the BRDF floor, the coarse ratio, the
+// refinements.
 float gFrLevelCos[HT_MAX_ORDER + 2];
 float gFrLevelSin[HT_MAX_ORDER + 2];
 float gFrMinPartial;
 uint gFrFlags;
+float gFrBrdfFloor, gFrCoarseRatio;
+uint gFrRefinements;
 void frontierSettings() {
   for (uint l = 0u; l <= uint(HT_MAX_ORDER) + 1u; ++l) {
     gFrLevelCos[l] = gFs.levelCosRadius[l];
@@ -64,6 +67,9 @@ void frontierSettings() {
   }
   gFrMinPartial = gFs.minPartialVisibility;
   gFrFlags = gFs.flags;
+  gFrBrdfFloor = gFs.brdfFloor;
+  gFrCoarseRatio = gFs.coarseRatio;
+  gFrRefinements = gFs.refinements;
 }
 
 // lightCaps: per cap its axis and the sine and cosine of its half-angle
@@ -347,7 +353,7 @@ void frontierPush(uint level, uint node, uint parentClass, uint parent) {
   // The control variate's kappa: the BRDF's colour where its factor is read.
   vec3 f = htBrdfColour(frontierFactorDirection(i));
   float value = luminance(f);
-  precise float floor = gFs.brdfFloor * diffuse + gFrLobeFloor * (bound - diffuse);
+  precise float floor = gFrBrdfFloor * diffuse + gFrLobeFloor * (bound - diffuse);
   float top = max(value, floor);
   precise vec3 kappa = top > 0.0 ? vec3(f.x / top, f.y / top, f.z / top) : vec3(0.0);
   precise float c = top * vis;
@@ -389,7 +395,7 @@ void frontierFinishTable(uint count, uint n) {
     hreal mass = tableMass(k);
     gFrCum.v[(i) * gFrStride] = total;
     total = addF(total, mass);
-    precise float coarseAt = gFs.coarseRatio * nd.brdfCentre;
+    precise float coarseAt = gFrCoarseRatio * nd.brdfCentre;
     if (nd.brdfBound > coarseAt) coarse = addF(coarse, mass);
   }
   gFrCum.v[(count) * gFrStride] = total;
@@ -435,7 +441,7 @@ uint frontierProductLevel() {
 // frontierLobeFloor at gFrProductLevel.
 float frontierLobeFloor() {
   bool resolved = ht.material.type != HT_MATERIAL_LAMBERT && frontierLobeResolved(scene.htLevelRadius[gFrProductLevel]);
-  return resolved ? gFs.lobeFloor : gFs.brdfFloor;
+  return resolved ? gFs.lobeFloor : gFrBrdfFloor;
 }
 
 // Frontier::build's own table: refine from the twelve faces.
@@ -452,7 +458,7 @@ void frontierRefine(uint n) {
   for (uint f = 0u; f < 12u; ++f) frontierPush(0u, f, 2u, kFrontierNone);
   uint faces = gFrCandCount;
   uint splits = 0u;
-  for (; splits < gFs.refinements && gFrHeapSize > 0u; ++splits) {
+  for (; splits < gFrRefinements && gFrHeapSize > 0u; ++splits) {
     uint top = frontierHeapPop();
     GpuFrontierNode nd = gFrCand.v[(top) * gFrPixels];
     uint first = gFrCandCount;
@@ -637,7 +643,7 @@ void frontierChildren(uint level, uint parent, uint parentClass, out hreal w[4],
         b[j] = 0.0;
       top = max(top, b[j]);
     }
-    for (uint j = 0u; j < 4u; ++j) b[j] = top > 0.0 ? max(b[j], mulF(hreal(gFs.brdfFloor), top)) : hreal(1.0);
+    for (uint j = 0u; j < 4u; ++j) b[j] = top > 0.0 ? max(b[j], mulF(hreal(gFrBrdfFloor), top)) : hreal(1.0);
   }
   hreal p[4];
   for (uint j = 0u; j < 4u; ++j) p[j] = mulF(mulF(w[j], b[j]), v[j]);
