@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates docs/report/ for the default settings (about 12 minutes on 2 cores):
+# Regenerates docs/report/ for the default settings (about 18 minutes on 2 cores):
 #   1. tools/bench.py on data/scenes/spheres.json: every method at 4/16/64/256
 #      spp on the cpu, and on the gpu (lavapipe here) every method the GPU path
 #      has, at $GPU_SPP; each point with the stratified and the independent
@@ -30,10 +30,10 @@ WIDTH=${WIDTH:-200}              # spheres.json bench
 HEIGHT=${HEIGHT:-100}
 SPP=${SPP:-4,16,64,256}
 SAMPLERS=${SAMPLERS:-stratified,independent}
-RUNS=${RUNS:-4}                  # timed runs per point on the cpu (the fastest counts)
+RUNS=${RUNS:-4}                  # timed runs per point (the fastest counts)
 DEVICES=${DEVICES:-cpu,gpu}
 GPU_SPP=${GPU_SPP:-4,16,64}
-GPU_RUNS=${GPU_RUNS:-1}
+GPU_RUNS=${GPU_RUNS:-$RUNS}      # the same on the gpu, so that their ratios compare like with like
 REF_SPP=${REF_SPP:-2048}
 MAX_SECONDS=${MAX_SECONDS:-60}   # skip a point predicted to take longer; time a long one once
 FLOOR_WIDTH=${FLOOR_WIDTH:-200}  # oracle variance floor
