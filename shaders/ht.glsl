@@ -30,8 +30,8 @@
 #define HT_MAX_FRONTIER (12 + 4 * HT_MAX_BUDGET_REFINEMENTS)
 
 // The 24 permutations of {0, 1, 2, 3} in lexicographic order, digit j in
-// bits 2j..2j+1, a byte each, eight to a word: read by shifts, where an
-// array indexed per lane is read lane by lane (llvmpipe).
+// bits 2j..2j+1, a byte each, eight to a word, read by shifts: llvmpipe
+// rebuilds a constant array indexed per lane at each use, lane by lane.
 const uint64_t kHtPermutations[3] = uint64_t[3](0xB1E16C9C78D8B4E4ul, 0x36C672D22D8D39C9ul, 0x1B4B278763931E4Eul);
 
 // Float constants by their bits: the C++ literals round once, GLSL's may round twice.
