@@ -219,6 +219,7 @@ struct GpuRenderer::Impl {
   bool texelViews = true;       // GpuOptions::texelViews
   bool texels = false;          // the scene's arrays fit their texel views (HT_SPEC_TEXELS)
   bool pipelineTexels = false;  // the pipeline's HT_SPEC_TEXELS
+  uint32_t pipelineCapSlots = 0;  // the pipeline's HT_SPEC_CAP_SLOTS
   bool pipelineRan = false;     // warmPipeline has dispatched it
   VkQueryPool queries = VK_NULL_HANDLE;
   uint64_t timestampMask = 0;
@@ -318,8 +319,9 @@ struct GpuRenderer::Impl {
   // The method's family shader specialized for it (HT_SPEC_METHOD), with
   // the buffers bound so far bound again.
   void usePipeline(Method method) {
-    if (pipelineMethod == uint32_t(method) && pipelineTexels == texels) return;
-    const uint32_t specialization[] = {uint32_t(method), texels ? 1u : 0u};
+    const uint32_t capSlots = uint32_t(std::min<size_t>(occluders, HT_MAX_CAPS));
+    if (pipelineMethod == uint32_t(method) && pipelineTexels == texels && pipelineCapSlots == capSlots) return;
+    const uint32_t specialization[] = {uint32_t(method), texels ? 1u : 0u, capSlots};
     shaderName =
         fmt::format("{}.{}.spv", familyShader(methodInfo(method).family), usesFloat64(method) ? "fp64" : "fp32");
     pipeline.emplace(ctx, (std::filesystem::path(shaderDir) / shaderName).string(), kBindings,
@@ -327,6 +329,7 @@ struct GpuRenderer::Impl {
                      specialization);
     pipelineMethod = uint32_t(method);
     pipelineTexels = texels;
+    pipelineCapSlots = capSlots;
     pipelineRan = false;
     if (hasScene) bindScene();
     if (pixels.size() > 0) pipeline->setBuffer(HT_BINDING_PIXELS, pixels);

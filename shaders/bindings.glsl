@@ -17,6 +17,11 @@ layout(constant_id = HT_SPEC_METHOD) const uint kSpecializedMethod = HT_METHOD_A
 // The large arrays through their texel views (true) or their chunks' device
 // addresses (false), chosen per scene by the host.
 layout(constant_id = HT_SPEC_TEXELS) const bool kTexels = false;
+// The scene's spheres and planes (at most HT_MAX_CAPS), one cap slot each:
+// loops over the caps have a constant count, so that the driver can unroll
+// them and read each cap's arrays at a constant index (llvmpipe reads an
+// array at a loop counter lane by lane).
+layout(constant_id = HT_SPEC_CAP_SLOTS) const uint kCapSlots = HT_MAX_CAPS;
 layout(set = 0, binding = HT_BINDING_RADIANCE_TEXELS) uniform samplerBuffer radianceTexels;
 layout(set = 0, binding = HT_BINDING_TREE_AVG_TEXELS) uniform samplerBuffer treeAvgTexels;
 layout(set = 0, binding = HT_BINDING_TREE_MAX_TEXELS) uniform samplerBuffer treeMaxTexels;

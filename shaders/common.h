@@ -59,6 +59,7 @@
 #define HT_METHOD_ANY 0xFFFFFFFFu  // pixel.glsl's specialization constant: use GpuPush::method
 #define HT_SPEC_METHOD 0           // its constant_id
 #define HT_SPEC_TEXELS 1           // constant_id of bindings.glsl's kTexels
+#define HT_SPEC_CAP_SLOTS 2        // constant_id of bindings.glsl's kCapSlots
 
 // GpuPush::sampler: the values of ht::SamplerKind (host/sampler.h).
 #define HT_SAMPLER_INDEPENDENT 0

@@ -72,9 +72,9 @@ void frontierSettings() {
   gFrRefinements = gFs.refinements;
 }
 
-// lightCaps: per cap its axis and the sine and cosine of its half-angle
-// less the margin. gFrCaps: the caps the point applies (bits).
-uint gFrCapCount;
+// lightCaps: per cap slot (one per sphere and plane, bindings.glsl's
+// kCapSlots) its axis and the sine and cosine of its half-angle less the
+// margin. gFrCaps: the slots the point applies (bits).
 vec3 gFrCapAxis[HT_MAX_CAPS];
 float gFrCapSin[HT_MAX_CAPS];
 float gFrCapCos[HT_MAX_CAPS];
@@ -118,21 +118,19 @@ precise hreal subF(hreal a, hreal b) { return a - b; }
 precise hreal mulF(hreal a, hreal b) { return a * b; }
 precise hreal divF(hreal a, hreal b) { return a / b; }
 
-void frontierAddCap(vec3 axis, float s0) {
+void frontierAddCap(uint k, vec3 axis, float s0) {
   precise float c0 = sqrt(1.0 - s0 * s0);
   precise float sinA = s0 * gFs.capCosMargin - c0 * gFs.capSinMargin;
   precise float cosA = c0 * gFs.capCosMargin + s0 * gFs.capSinMargin;
-  if (!(sinA > 0.0) || gFrCapCount >= uint(HT_MAX_CAPS)) return;  // the host refuses scenes with more
-  gFrCapAxis[gFrCapCount] = axis;
-  gFrCapSin[gFrCapCount] = sinA;
-  gFrCapCos[gFrCapCount] = cosA;
-  gFrCaps |= 1u << gFrCapCount;
-  ++gFrCapCount;
+  if (!(sinA > 0.0)) return;
+  gFrCapAxis[k] = axis;
+  gFrCapSin[k] = sinA;
+  gFrCapCos[k] = cosA;
+  gFrCaps |= 1u << k;
 }
 
 // occluders() and lightCaps, seen from the shadow rays' origin.
 void frontierCaps(vec3 position, vec3 normal) {
-  gFrCapCount = 0u;
   gFrCaps = 0u;
   if ((gFrFlags & HT_FRONTIER_VISIBILITY) == 0u) return;
   precise vec3 origin = offsetRayOrigin(position, normal);
@@ -143,14 +141,14 @@ void frontierCaps(vec3 position, vec3 normal) {
     if (!(dist > 0.0)) continue;
     precise vec3 unit = d / dist;
     precise float ratio = sp.radius / dist;
-    frontierAddCap(normalize3(vec3(toHealpixFrame(unit))), min(1.0, ratio));
+    frontierAddCap(k, normalize3(vec3(toHealpixFrame(unit))), min(1.0, ratio));
   }
   for (uint k = 0u; k < scene.planeCount; ++k) {
     GpuPlane p = planes[k];
     precise vec3 rel = origin - p.point;
     float side = dot3(rel, p.normal);
     vec3 below = side >= 0.0 ? -p.normal : p.normal;
-    frontierAddCap(normalize3(vec3(toHealpixFrame(below))), 1.0);
+    frontierAddCap(scene.sphereCount + k, normalize3(vec3(toHealpixFrame(below))), 1.0);
   }
 }
 
@@ -168,7 +166,7 @@ uint frontierClass(vec3 centre, uint level, uint caps, out float factor) {
   float cR = gFrLevelCos[level], sR = gFrLevelSin[level];
   bool partial = false;
   precise float visible = 1.0;
-  for (uint k = 0u; k < gFrCapCount; ++k) {
+  [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
     if (((caps >> k) & 1u) == 0u) continue;
     precise float d = dot3(centre, gFrCapAxis[k]);
     precise float inside = frontierCosInside(k, cR, sR), outside = frontierCosOutside(k, cR, sR);
@@ -197,12 +195,13 @@ uint frontierNodeClass(uint level, uint node, uint caps, out float factor) {
   float cR = gFrLevelCos[level + 1u], sR = gFrLevelSin[level + 1u];
   precise float visible[4] = float[4](1.0, 1.0, 1.0, 1.0);
   bool partial[4] = bool[4](false, false, false, false);
-  for (uint k = 0u; k < gFrCapCount; ++k) {
+  vec3 child[4] = vec3[4](htCenter(first), htCenter(first + 1u), htCenter(first + 2u), htCenter(first + 3u));
+  [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
     if (((caps >> k) & 1u) == 0u) continue;
     if (!(dot3(centre, gFrCapAxis[k]) > frontierCosOutside(k, cR0, sR0))) continue;
     precise float inside = frontierCosInside(k, cR, sR), outside = frontierCosOutside(k, cR, sR);
     for (uint j = 0u; j < 4u; ++j) {
-      precise float d = dot3(htCenter(first + j), gFrCapAxis[k]);
+      precise float d = dot3(child[j], gFrCapAxis[k]);
       if (d >= inside) {
         visible[j] = 0.0;
       } else if (d > outside) {
@@ -537,8 +536,8 @@ uint frontierSharedTable() {
 // A shared table has no mass below the horizon but for nodes the horizon
 // cuts: the cap of the point's own plane is left out.
 void frontierDropOwnPlane() {
-  for (uint k = 0u; k < gFrCapCount; ++k)
-    if (dot3(gFrCapAxis[k], ht.n) < -0.9999) gFrCaps &= ~(1u << k);
+  [[unroll]] for (uint k = 0u; k < kCapSlots; ++k)
+    if (((gFrCaps >> k) & 1u) != 0u && dot3(gFrCapAxis[k], ht.n) < -0.9999) gFrCaps &= ~(1u << k);
 }
 
 // Frontier::build on a shared table: the point's caps (less its own
@@ -552,7 +551,7 @@ hvec3 frontierApplyCaps(uint table, out hreal colourMass) {
   for (uint f = 0u; f < 12u; ++f) {
     uint faceCaps = 0u;
     vec3 centre = htCenter(f);
-    for (uint k = 0u; k < gFrCapCount; ++k)
+    [[unroll]] for (uint k = 0u; k < kCapSlots; ++k)
       if (((gFrCaps >> k) & 1u) != 0u && dot3(centre, gFrCapAxis[k]) > frontierCosOutside(k, cR, sR))
         faceCaps |= 1u << k;
     if (faceCaps == 0u) {

@@ -78,7 +78,6 @@ struct HtPoint {
   uint flags;
   uint order;
   uint maxLevel;
-  uint capCount;
   hreal area;  // measure one candidate sequence covers
   hreal s;     // samples per unit of h
   hreal u;     // the pixel's offset
@@ -193,7 +192,7 @@ precise float htBrdfBound(uint i) {
 // 0: the cone is fully blocked, 1: fully free, 2: partly covered.
 uint htVisibilityClass(vec3 axis, uint level) {
   bool partial = false;
-  for (uint k = 0u; k < ht.capCount; ++k) {
+  [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
     precise float d = dot3(axis, gHtCapAxis[k]);
     uint at = k * uint(HT_MAX_ORDER + 1) + level;
     if (d >= gHtCapCosInside[at]) return 0u;
@@ -209,7 +208,7 @@ precise float htVisibleFraction(uint leaf) {
   for (int o = 0; o < 5; ++o) {
     vec3 d = vec3(pixToVec(ht.order, leaf, offsets[o].x, offsets[o].y));
     bool blocked = false;
-    for (uint k = 0u; k < ht.capCount; ++k) blocked = blocked || dot3(d, gHtCapAxis[k]) > gHtCapCos[k];
+    [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) blocked = blocked || dot3(d, gHtCapAxis[k]) > gHtCapCos[k];
     free += blocked ? 0 : 1;
   }
   precise float fraction = float(free) / 5.0;
@@ -243,19 +242,20 @@ HtNode htNode(uint level, uint node, bool withValue) {
   return n;
 }
 
-void htAddCap(vec3 axis, float angle) {
-  if (ht.capCount >= uint(HT_MAX_CAPS)) return;  // the host refuses such scenes
-  gHtCapAxis[ht.capCount] = axis;
-  gHtCapCos[ht.capCount] = cos(angle);
+// Cap slot k: its axis and half-angle, or none (angle <= 0: a slot no
+// direction or node meets).
+void htSetCap(uint k, vec3 axis, float angle) {
+  bool none = !(angle > 0.0);
+  gHtCapAxis[k] = none ? vec3(0.0) : axis;
+  gHtCapCos[k] = none ? 2.0 : cos(angle);
   for (uint level = 0u; level <= ht.order; ++level) {
     float rad = scene.htLevelRadius[level];
     precise float inner = angle - rad;
     precise float outer = angle + rad;
-    uint at = ht.capCount * uint(HT_MAX_ORDER + 1) + level;
-    gHtCapCosInside[at] = angle > rad ? cos(inner) : 2.0;
-    gHtCapCosOutside[at] = cos(min(kPi, outer));
+    uint at = k * uint(HT_MAX_ORDER + 1) + level;
+    gHtCapCosInside[at] = none ? 2.0 : angle > rad ? cos(inner) : 2.0;
+    gHtCapCosOutside[at] = none ? 2.0 : cos(min(kPi, outer));
   }
-  ++ht.capCount;
 }
 
 // HtPoint's constructor up to the budget.
@@ -274,7 +274,6 @@ void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
   precise hreal sphere = 12.0 * face;
   ht.area = (ht.flags & HT_FLAG_SPHERE_SEQUENCE) != 0u ? sphere : face;
   if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u) ht.table = htTableFrame(gHtMaterial, ht.woLocal, ht.wo, ht.n, ht.frame.s);
-  ht.capCount = 0u;
   if (htVisibility()) {
     // Seen from the shadow rays' origin, as on the CPU.
     precise vec3 origin = offsetRayOrigin(position, normal);
@@ -282,18 +281,17 @@ void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
       GpuSphere sp = spheres[k];
       precise vec3 d = sp.center - origin;
       precise float dist = length3(d);
-      if (dist <= 0.0) continue;
       precise float ratio = sp.radius / dist;
-      precise float angle = asin(min(1.0, ratio)) - kHtCapMargin;
+      precise float angle = dist > 0.0 ? asin(min(1.0, ratio)) - kHtCapMargin : 0.0;
       precise vec3 unit = d / dist;
-      if (angle > 0.0) htAddCap(normalize3(vec3(toHealpixFrame(unit))), angle);
+      htSetCap(k, angle > 0.0 ? normalize3(vec3(toHealpixFrame(unit))) : vec3(0.0), angle);
     }
     for (uint k = 0u; k < scene.planeCount; ++k) {
       GpuPlane p = planes[k];
       precise vec3 rel = origin - p.point;
       float side = dot3(rel, p.normal);
       vec3 below = side >= 0.0 ? -p.normal : p.normal;
-      htAddCap(normalize3(vec3(toHealpixFrame(below))), kHtPlaneCapAngle);
+      htSetCap(scene.sphereCount + k, normalize3(vec3(toHealpixFrame(below))), kHtPlaneCapAngle);
     }
   }
 }
