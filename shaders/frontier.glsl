@@ -537,7 +537,7 @@ uint frontierSharedTable() {
 // cuts: the cap of the point's own plane is left out.
 void frontierDropOwnPlane() {
   [[unroll]] for (uint k = 0u; k < kCapSlots; ++k)
-    if (((gFrCaps >> k) & 1u) != 0u && dot3(gFrCapAxis[k], ht.n) < -0.9999) gFrCaps &= ~(1u << k);
+    if (dot3(gFrCapAxis[k], ht.n) < -0.9999) gFrCaps &= ~(1u << k);  // an unused slot's bit is clear already
 }
 
 // Frontier::build on a shared table: the point's caps (less its own

@@ -284,7 +284,7 @@ void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
       precise float ratio = sp.radius / dist;
       precise float angle = dist > 0.0 ? asin(min(1.0, ratio)) - kHtCapMargin : 0.0;
       precise vec3 unit = d / dist;
-      htSetCap(k, angle > 0.0 ? normalize3(vec3(toHealpixFrame(unit))) : vec3(0.0), angle);
+      htSetCap(k, normalize3(vec3(toHealpixFrame(unit))), angle);
     }
     for (uint k = 0u; k < scene.planeCount; ++k) {
       GpuPlane p = planes[k];
