@@ -161,10 +161,11 @@ precise float frontierCosInside(uint k, float cR, float sR) {
 precise float frontierCosOutside(uint k, float cR, float sR) { return gFrCapCos[k] * cR - gFrCapSin[k] * sR; }
 
 // frontierVisibility over the caps in `caps`: the class (0 inside one, 1
-// outside all, 2 partly covered) and the node's factor in the density.
-uint frontierClass(vec3 centre, uint level, uint caps, out float factor) {
+// outside all, 2 partly covered), the node's factor in the density and the
+// caps that cover it in part.
+uint frontierClass(vec3 centre, uint level, uint caps, out float factor, out uint partialCaps) {
   float cR = gFrLevelCos[level], sR = gFrLevelSin[level];
-  bool partial = false;
+  partialCaps = 0u;
   precise float visible = 1.0;
   [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
     if (((caps >> k) & 1u) == 0u) continue;
@@ -175,46 +176,48 @@ uint frontierClass(vec3 centre, uint level, uint caps, out float factor) {
       return 0u;
     }
     if (d > outside) {
-      partial = true;
+      partialCaps |= 1u << k;
       visible = min(visible, 1.0 - min((d - outside) / (min(inside, 1.0) - outside), 1.0));
     }
   }
-  factor = partial ? max(visible, gFrMinPartial) : 1.0;
-  return partial ? 2u : 1u;
+  factor = partialCaps != 0u ? max(visible, gFrMinPartial) : 1.0;
+  return partialCaps != 0u ? 2u : 1u;
 }
 
 // frontierNodeVisibility: frontierClass of node `node` of `level`, a
 // coarse partly covered one weighing its children's mean factor under the
-// caps that cover it in part.
+// caps that cover it in part. The children are a loop of a variable count,
+// 0 for all but the coarse partly covered nodes: llvmpipe runs every branch
+// of a SIMD group, and a loop that no lane enters costs one pass of its
+// body, not four.
 uint frontierNodeClass(uint level, uint node, uint caps, out float factor) {
   vec3 centre = htCenter(levelOffset(level) + node);
-  uint cls = frontierClass(centre, level, caps, factor);
-  if (cls != 2u || level > uint(HT_FRONTIER_SHARE_LEVEL) || level >= ht.order) return cls;
+  uint partialCaps;
+  uint cls = frontierClass(centre, level, caps, factor, partialCaps);
+  bool coarse = cls == 2u && level <= uint(HT_FRONTIER_SHARE_LEVEL) && level < ht.order;
   uint first = levelOffset(level + 1u) + 4u * node;
-  float cR0 = gFrLevelCos[level], sR0 = gFrLevelSin[level];
-  float cR = gFrLevelCos[level + 1u], sR = gFrLevelSin[level + 1u];
-  precise float visible[4] = float[4](1.0, 1.0, 1.0, 1.0);
-  bool partial[4] = bool[4](false, false, false, false);
-  vec3 child[4] = vec3[4](htCenter(first), htCenter(first + 1u), htCenter(first + 2u), htCenter(first + 3u));
-  [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
-    if (((caps >> k) & 1u) == 0u) continue;
-    if (!(dot3(centre, gFrCapAxis[k]) > frontierCosOutside(k, cR0, sR0))) continue;
-    precise float inside = frontierCosInside(k, cR, sR), outside = frontierCosOutside(k, cR, sR);
-    for (uint j = 0u; j < 4u; ++j) {
-      precise float d = dot3(child[j], gFrCapAxis[k]);
+  uint childLevel = min(level + 1u, uint(HT_MAX_ORDER) + 1u);
+  float cR = gFrLevelCos[childLevel], sR = gFrLevelSin[childLevel];
+  precise float share = 0.0;
+  [[dont_unroll]] for (uint j = 0u; j < (coarse ? 4u : 0u); ++j) {
+    vec3 child = htCenter(first + j);
+    precise float visible = 1.0;
+    bool partial = false;
+    [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
+      if (((partialCaps >> k) & 1u) == 0u) continue;
+      precise float inside = frontierCosInside(k, cR, sR), outside = frontierCosOutside(k, cR, sR);
+      precise float d = dot3(child, gFrCapAxis[k]);
       if (d >= inside) {
-        visible[j] = 0.0;
+        visible = 0.0;
       } else if (d > outside) {
-        partial[j] = true;
-        visible[j] = min(visible[j], 1.0 - min((d - outside) / (min(inside, 1.0) - outside), 1.0));
+        partial = true;
+        visible = min(visible, 1.0 - min((d - outside) / (min(inside, 1.0) - outside), 1.0));
       }
     }
+    share += partial && visible > 0.0 ? max(visible, gFrMinPartial) : visible;
   }
-  precise float share = 0.0;
-  for (uint j = 0u; j < 4u; ++j)
-    share += partial[j] && visible[j] > 0.0 ? max(visible[j], gFrMinPartial) : visible[j];
   precise float quarter = 0.25 * share;
-  factor = max(quarter, gFrMinPartial);
+  if (coarse) factor = max(quarter, gFrMinPartial);
   return cls;
 }
 
@@ -253,19 +256,22 @@ vec3 frontierFactorDirection(uint i) {
   return gFs.centroids[i >> HT_HT_VEC3_CHUNK_SHIFT].v[i & ((1u << HT_HT_VEC3_CHUNK_SHIFT) - 1u)];
 }
 
-// FrontierNode::chroma and descentChroma of the table's node k (an own
-// table's node's descent is exact for colour only below the product
-// levels, where its mean is its chroma).
-vec3 frontierChroma(uint k) {
-  if (gFrShared) return gFrColour.v[k].chroma;
+// FrontierNode::chroma, descentChroma and kappa of the table's node k, on
+// a shared table or an own one (whose node's descent is exact for colour
+// only below the product levels, where its mean is its chroma). `onShared`
+// is a constant where the caller knows it: llvmpipe would run both sides.
+vec3 frontierChroma(uint k, bool onShared) {
+  if (onShared) return gFrColour.v[k].chroma;
   GpuFrontierNode nd = tableNode(k);
   return frontierNodeChroma(nd.level, nd.node);
 }
-vec3 frontierDescentChroma(uint k) { return gFrShared ? gFrColour.v[k].descent : frontierChroma(k); }
-vec3 frontierKappa(uint k) { return gFrShared ? vec3(gFrColour.v[k].kappa) : gFrKappa.v[k * gFrStride]; }
+vec3 frontierDescentChroma(uint k, bool onShared) { return onShared ? gFrColour.v[k].descent : frontierChroma(k, false); }
+vec3 frontierKappa(uint k, bool onShared) { return onShared ? vec3(gFrColour.v[k].kappa) : gFrKappa.v[k * gFrStride]; }
 
 // colourMeanOf: the mean chroma of the directions node k of class cls draws.
-vec3 frontierColourMean(uint k, uint cls) { return cls == 1u ? frontierDescentChroma(k) : frontierChroma(k); }
+vec3 frontierColourMean(uint k, uint cls, bool onShared) {
+  return cls == 1u ? frontierDescentChroma(k, onShared) : frontierChroma(k, onShared);
+}
 
 // kappa x a chroma (Frontier::colourOf, colourMean), in the reals' precision.
 hvec3 frontierTimesKappa(vec3 kappa, hvec3 chroma) {
@@ -274,8 +280,8 @@ hvec3 frontierTimesKappa(vec3 kappa, hvec3 chroma) {
 
 // sumFaceColours' terms: mass x kappa x the mean chroma of node k of class
 // cls, added to `acc`.
-hvec3 frontierAddColour(hvec3 acc, hreal mass, uint k, uint cls) {
-  hvec3 mean = frontierTimesKappa(frontierKappa(k), hvec3(frontierColourMean(k, cls)));
+hvec3 frontierAddColour(hvec3 acc, hreal mass, uint k, uint cls, bool onShared) {
+  hvec3 mean = frontierTimesKappa(frontierKappa(k, onShared), hvec3(frontierColourMean(k, cls, onShared)));
   return hvec3(addF(acc.x, mulF(mass, mean.x)), addF(acc.y, mulF(mass, mean.y)), addF(acc.z, mulF(mass, mean.z)));
 }
 hvec3 frontierAdd3(hvec3 a, hvec3 b) { return hvec3(addF(a.x, b.x), addF(a.y, b.y), addF(a.z, b.z)); }
@@ -572,7 +578,7 @@ hvec3 frontierApplyCaps(uint table, out hreal colourMass) {
       hreal pointMass = cls == 1u ? mass : mulF(mass, hreal(factor));
       gFrPointMass.v[(k) * gFrPixels] = pointMass;
       gFrPointClass.v[(k) * gFrPixels] = cls;
-      colour = frontierAddColour(colour, pointMass, k, cls);
+      colour = frontierAddColour(colour, pointMass, k, cls, true);
       faceMass = addF(faceMass, pointMass);
     }
     colourSum = frontierAdd3(colourSum, colour);
@@ -762,8 +768,8 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf, out ui
 // that reached `leaf`.
 hvec3 frontierColourOf(uint k, uint leaf) {
   bool exact = gFrShared || tableNode(k).level >= gFrProductLevel;
-  hvec3 chroma = frontierVisibility(k) == 1u && exact ? frontierLeafChroma(envRadiance(leaf)) : hvec3(frontierChroma(k));
-  return frontierTimesKappa(frontierKappa(k), chroma);
+  hvec3 chroma = frontierVisibility(k) == 1u && exact ? frontierLeafChroma(envRadiance(leaf)) : hvec3(frontierChroma(k, gFrShared));
+  return frontierTimesKappa(frontierKappa(k, gFrShared), chroma);
 }
 
 // An own table's sums of sumFaceColours, face by face.
@@ -774,7 +780,7 @@ hvec3 frontierOwnColourSum(out hreal colourMass) {
     hvec3 colour = hvec3(0.0);
     hreal mass = 0.0;
     for (uint k = faceStart(f); k < faceStart(f + 1u); ++k) {
-      colour = frontierAddColour(colour, tableMass(k), k, tableNode(k).visibility);
+      colour = frontierAddColour(colour, tableMass(k), k, tableNode(k).visibility, false);
       mass = addF(mass, tableMass(k));
     }
     colourSum = frontierAdd3(colourSum, colour);
