@@ -220,6 +220,7 @@ struct GpuRenderer::Impl {
   bool texels = false;          // the scene's arrays fit their texel views (HT_SPEC_TEXELS)
   bool pipelineTexels = false;  // the pipeline's HT_SPEC_TEXELS
   uint32_t pipelineCapSlots = 0;  // the pipeline's HT_SPEC_CAP_SLOTS
+  bool pipelineBrdfTable = false;  // the pipeline's HT_SPEC_BRDF_TABLE
   bool pipelineRan = false;     // warmPipeline has dispatched it
   VkQueryPool queries = VK_NULL_HANDLE;
   uint64_t timestampMask = 0;
@@ -306,7 +307,7 @@ struct GpuRenderer::Impl {
     shaderDir = o.shaderDir.empty() ? shaderDirNextToExecutable() : o.shaderDir;
     // Checks a shader against the host now; the cheapest method's pipeline,
     // as compiling takes long on lavapipe.
-    usePipeline(Method::Uniform);
+    usePipeline(Method::Uniform, false);
     if (ctx.info.timestampValidBits > 0) {
       VkQueryPoolCreateInfo q{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
       q.queryType = VK_QUERY_TYPE_TIMESTAMP;
@@ -316,12 +317,15 @@ struct GpuRenderer::Impl {
                                                         : (uint64_t(1) << ctx.info.timestampValidBits) - 1;
     }
   }
-  // The method's family shader specialized for it (HT_SPEC_METHOD), with
-  // the buffers bound so far bound again.
-  void usePipeline(Method method) {
+  // The method's family shader specialized for it (HT_SPEC_METHOD) and for
+  // whether HT's BRDF bounds are tabulated, with the buffers bound so far
+  // bound again.
+  void usePipeline(Method method, bool brdfTable) {
     const uint32_t capSlots = uint32_t(std::min<size_t>(occluders, HT_MAX_CAPS));
-    if (pipelineMethod == uint32_t(method) && pipelineTexels == texels && pipelineCapSlots == capSlots) return;
-    const uint32_t specialization[] = {uint32_t(method), texels ? 1u : 0u, capSlots};
+    if (pipelineMethod == uint32_t(method) && pipelineTexels == texels && pipelineCapSlots == capSlots &&
+        pipelineBrdfTable == brdfTable)
+      return;
+    const uint32_t specialization[] = {uint32_t(method), texels ? 1u : 0u, capSlots, brdfTable ? 1u : 0u};
     shaderName =
         fmt::format("{}.{}.spv", familyShader(methodInfo(method).family), usesFloat64(method) ? "fp64" : "fp32");
     pipeline.emplace(ctx, (std::filesystem::path(shaderDir) / shaderName).string(), kBindings,
@@ -330,6 +334,7 @@ struct GpuRenderer::Impl {
     pipelineMethod = uint32_t(method);
     pipelineTexels = texels;
     pipelineCapSlots = capSlots;
+    pipelineBrdfTable = brdfTable;
     pipelineRan = false;
     if (hasScene) bindScene();
     if (pixels.size() > 0) pipeline->setBuffer(HT_BINDING_PIXELS, pixels);
@@ -715,6 +720,11 @@ GpuPush tilePush(const RenderSettings& s, uint32_t x, uint32_t y, uint32_t tileW
   return push;
 }
 
+// HT's BRDF bounds come from tables (HtOptions::brdfTable).
+bool usesBrdfTable(const RenderSettings& s) {
+  return methodInfo(s.method).family == Family::Ht && htOptionsFor(s.method, s.options).brdfTable;
+}
+
 // Directions a pixel draws, roughly: ris draws M candidates per sample;
 // tsis first partitions the sphere (about five BRDF evaluations per region);
 // wis evaluates the BRDF at every node of its exact levels, then four times
@@ -941,14 +951,14 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
 
 void GpuRenderer::uploadTables(const RenderSettings& s, const MethodTables& tables) {
   impl_->checkMethod(s);
-  impl_->usePipeline(s.method);
+  impl_->usePipeline(s.method, usesBrdfTable(s));
   impl_->uploadTables(s, tables);
 }
 
 GpuRenderResult GpuRenderer::render(const RenderSettings& s, const MethodTables& tables) {
   Impl& m = *impl_;
   m.checkMethod(s);
-  m.usePipeline(s.method);
+  m.usePipeline(s.method, usesBrdfTable(s));
   m.uploadTables(s, tables);
   const auto [tileW, tileH] = m.prepareTiles(s);
   m.warmPipeline(s);

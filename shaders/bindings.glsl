@@ -22,6 +22,9 @@ layout(constant_id = HT_SPEC_TEXELS) const bool kTexels = false;
 // them and read each cap's arrays at a constant index (llvmpipe reads an
 // array at a loop counter lane by lane).
 layout(constant_id = HT_SPEC_CAP_SLOTS) const uint kCapSlots = HT_MAX_CAPS;
+// HT's tabulated BRDF bounds (HT_FLAG_BRDF_TABLE) can be on: false leaves
+// their code out of the pipeline (llvmpipe runs every branch).
+layout(constant_id = HT_SPEC_BRDF_TABLE) const bool kBrdfTable = true;
 layout(set = 0, binding = HT_BINDING_RADIANCE_TEXELS) uniform samplerBuffer radianceTexels;
 layout(set = 0, binding = HT_BINDING_TREE_AVG_TEXELS) uniform samplerBuffer treeAvgTexels;
 layout(set = 0, binding = HT_BINDING_TREE_MAX_TEXELS) uniform samplerBuffer treeMaxTexels;

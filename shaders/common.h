@@ -60,6 +60,7 @@
 #define HT_SPEC_METHOD 0           // its constant_id
 #define HT_SPEC_TEXELS 1           // constant_id of bindings.glsl's kTexels
 #define HT_SPEC_CAP_SLOTS 2        // constant_id of bindings.glsl's kCapSlots
+#define HT_SPEC_BRDF_TABLE 3       // constant_id of bindings.glsl's kBrdfTable
 
 // GpuPush::sampler: the values of ht::SamplerKind (host/sampler.h).
 #define HT_SAMPLER_INDEPENDENT 0

@@ -53,6 +53,8 @@ bool htBiased() {
   if (kSpecializedMethod == HT_METHOD_ANY) return (pc.htFlags & HT_FLAG_BIASED) != 0u;
   return kSpecializedMethod == HT_METHOD_HT_BIASED || kSpecializedMethod == HT_METHOD_HT_VIS_BIASED;
 }
+// HtOptions::brdfTable (kBrdfTable false where it is off).
+bool htBrdfTable() { return kBrdfTable && (pc.htFlags & HT_FLAG_BRDF_TABLE) != 0u; }
 
 layout(buffer_reference, scalar, buffer_reference_align = 4) writeonly buffer HtSampleLog { GpuHtSample s[]; };
 
@@ -142,7 +144,7 @@ uint64_t htFaceDigits(uint seed) {
 precise vec3 htBrdfColour(vec3 dirHp) { return evalBsdf(ht.material, ht.woLocal, toLocal(ht.frame, dirHp)); }
 
 precise float htBrdfValue(vec3 dirHp) {
-  if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u)
+  if (htBrdfTable())
     return htTableAverage(ht.table, vec3(dot3(dirHp, ht.table.x), dot3(dirHp, ht.table.y), dot3(dirHp, ht.n)));
   return luminance(htBrdfColour(dirHp));
 }
@@ -153,7 +155,7 @@ precise float htBrdfBoundParts(uint i, out float diffuse) {
   vec3 axis = htCenter(i);
   vec2 csr = htCosSinRadius(i);
   float cr = csr.x, sr = csr.y;
-  if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u) {
+  if (htBrdfTable()) {
     diffuse = htTableBound(ht.table, vec3(dot3(axis, ht.table.x), dot3(axis, ht.table.y), dot3(axis, ht.n)), cr, sr);
     return diffuse;
   }
@@ -273,7 +275,7 @@ void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
   precise hreal face = kHtFourPi / 12.0;
   precise hreal sphere = 12.0 * face;
   ht.area = (ht.flags & HT_FLAG_SPHERE_SEQUENCE) != 0u ? sphere : face;
-  if ((ht.flags & HT_FLAG_BRDF_TABLE) != 0u) ht.table = htTableFrame(gHtMaterial, ht.woLocal, ht.wo, ht.n, ht.frame.s);
+  if (htBrdfTable()) ht.table = htTableFrame(gHtMaterial, ht.woLocal, ht.wo, ht.n, ht.frame.s);
   if (htVisibility()) {
     // Seen from the shadow rays' origin, as on the CPU.
     precise vec3 origin = offsetRayOrigin(position, normal);
@@ -659,7 +661,7 @@ void htWalk(inout HtWalk w, uint steps, inout uint step) {
       bool stopped = false;
       if (biased) {
         // HtPoint::stopEarly: a smooth node holding one acceptable candidate takes it, with the node's average.
-        float margin = (ht.flags & HT_FLAG_BRDF_TABLE) != 0u ? HT_BRDF_TABLE_MARGIN : 1.0;
+        float margin = htBrdfTable() ? HT_BRDF_TABLE_MARGIN : 1.0;
         precise float smoothBound = (1.0 + pc.htBiasedSmoothness) * n.brdfValue * margin;
         precise float twice = 2.0 * n.envAvg;
         precise float product = n.envAvg * n.brdfValue;

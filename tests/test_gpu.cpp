@@ -919,7 +919,7 @@ TEST(GpuBatches, LoopsCutShortAreRedone) {
   if (!gpu.float64()) GTEST_SKIP() << "device without shaderFloat64";
   gpu.setScene(scene);
   for (Method method : {Method::Ht}) {
-    RenderSettings rs = settings(method, 2048, 3, 16, 8);
+    RenderSettings rs = settings(method, 8192, 3, 16, 8);
     rs.pixelCounts = true;
     const GpuRenderResult g = gpu.render(rs);
     const RenderResult cpu = renderCpu(scene, rs);
