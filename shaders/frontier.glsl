@@ -160,64 +160,49 @@ precise float frontierCosInside(uint k, float cR, float sR) {
 }
 precise float frontierCosOutside(uint k, float cR, float sR) { return gFrCapCos[k] * cR - gFrCapSin[k] * sR; }
 
-// frontierVisibility over the caps in `caps`: the class (0 inside one, 1
-// outside all, 2 partly covered), the node's factor in the density and the
-// caps that cover it in part.
-uint frontierClass(vec3 centre, uint level, uint caps, out float factor, out uint partialCaps) {
-  float cR = gFrLevelCos[level], sR = gFrLevelSin[level];
-  partialCaps = 0u;
-  precise float visible = 1.0;
-  [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
-    if (((caps >> k) & 1u) == 0u) continue;
-    precise float d = dot3(centre, gFrCapAxis[k]);
-    precise float inside = frontierCosInside(k, cR, sR), outside = frontierCosOutside(k, cR, sR);
-    if (d >= inside) {
-      factor = 0.0;
-      return 0u;
-    }
-    if (d > outside) {
-      partialCaps |= 1u << k;
-      visible = min(visible, 1.0 - min((d - outside) / (min(inside, 1.0) - outside), 1.0));
-    }
-  }
-  factor = partialCaps != 0u ? max(visible, gFrMinPartial) : 1.0;
-  return partialCaps != 0u ? 2u : 1u;
-}
-
-// frontierNodeVisibility: frontierClass of node `node` of `level`, a
-// coarse partly covered one weighing its children's mean factor under the
-// caps that cover it in part. The children are a loop of a variable count,
-// 0 for all but the coarse partly covered nodes: llvmpipe runs every branch
-// of a SIMD group, and a loop that no lane enters costs one pass of its
-// body, not four.
+// frontierVisibility and frontierNodeVisibility: the class of node `node`
+// of `level` under the caps in `caps` (0 inside one, 1 outside all, 2 partly
+// covered) and its factor in the density, a coarse partly covered node's
+// the mean of its children's factors under the caps that cover it in part.
+// The node and its children are passes of one loop, one pass for all but
+// the coarse partly covered nodes: llvmpipe runs all of a loop's body for
+// its SIMD group, so that a loop of its own for the children would cost a
+// pass for every node.
 uint frontierNodeClass(uint level, uint node, uint caps, out float factor) {
-  vec3 centre = htCenter(levelOffset(level) + node);
-  uint partialCaps;
-  uint cls = frontierClass(centre, level, caps, factor, partialCaps);
-  bool coarse = cls == 2u && level <= uint(HT_FRONTIER_SHARE_LEVEL) && level < ht.order;
-  uint first = levelOffset(level + 1u) + 4u * node;
-  uint childLevel = min(level + 1u, uint(HT_MAX_ORDER) + 1u);
-  float cR = gFrLevelCos[childLevel], sR = gFrLevelSin[childLevel];
+  uint cls = 1u, partialCaps = 0u, probes = 1u;
+  factor = 1.0;
   precise float share = 0.0;
-  [[dont_unroll]] for (uint j = 0u; j < (coarse ? 4u : 0u); ++j) {
-    vec3 child = htCenter(first + j);
+  [[dont_unroll]] for (uint j = 0u; j < probes; ++j) {
+    bool self = j == 0u;
+    uint at = self ? level : level + 1u;
+    vec3 centre = htCenter(self ? levelOffset(level) + node : levelOffset(level + 1u) + 4u * node + j - 1u);
+    float cR = gFrLevelCos[at], sR = gFrLevelSin[at];
+    uint probeCaps = self ? caps : partialCaps;
+    bool inside = false;
+    uint partial = 0u;
     precise float visible = 1.0;
-    bool partial = false;
     [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
-      if (((partialCaps >> k) & 1u) == 0u) continue;
-      precise float inside = frontierCosInside(k, cR, sR), outside = frontierCosOutside(k, cR, sR);
-      precise float d = dot3(child, gFrCapAxis[k]);
-      if (d >= inside) {
-        visible = 0.0;
+      if (((probeCaps >> k) & 1u) == 0u) continue;
+      precise float d = dot3(centre, gFrCapAxis[k]);
+      precise float inner = frontierCosInside(k, cR, sR), outside = frontierCosOutside(k, cR, sR);
+      if (d >= inner) {
+        inside = true;
       } else if (d > outside) {
-        partial = true;
-        visible = min(visible, 1.0 - min((d - outside) / (min(inside, 1.0) - outside), 1.0));
+        partial |= 1u << k;
+        visible = min(visible, 1.0 - min((d - outside) / (min(inner, 1.0) - outside), 1.0));
       }
     }
-    share += partial && visible > 0.0 ? max(visible, gFrMinPartial) : visible;
+    if (self) {
+      cls = inside ? 0u : partial != 0u ? 2u : 1u;
+      factor = inside ? 0.0 : partial != 0u ? max(visible, gFrMinPartial) : 1.0;
+      partialCaps = partial;
+      probes = cls == 2u && level <= uint(HT_FRONTIER_SHARE_LEVEL) && level < ht.order ? 5u : 1u;
+    } else {
+      share += inside ? 0.0 : partial != 0u && visible > 0.0 ? max(visible, gFrMinPartial) : visible;
+    }
   }
   precise float quarter = 0.25 * share;
-  if (coarse) factor = max(quarter, gFrMinPartial);
+  if (probes == 5u) factor = max(quarter, gFrMinPartial);
   return cls;
 }
 
@@ -620,7 +605,12 @@ void frontierSegments() {
   gFrTotal = total;
 }
 
-// Frontier::children: the four children's weights and classes.
+// Frontier::children: the four children's weights and classes. The
+// children's classes and BRDF factors are loops of a variable count, 0
+// where the parent is free or the level below the product levels, as
+// llvmpipe runs all of a loop's body for its SIMD group (a loop no lane
+// enters costs one pass, not four); the arrays are written at constant
+// indices, which llvmpipe keeps in registers.
 void frontierChildren(uint level, uint parent, uint parentClass, out hreal w[4], out uint cls[4]) {
   uint first = levelOffset(level) + 4u * parent;
   hreal v[4];
@@ -631,22 +621,29 @@ void frontierChildren(uint level, uint parent, uint parentClass, out hreal w[4],
   }
   bool product = level <= gFrProductLevel;
   if (!product && parentClass != 2u) return;
-  if (parentClass == 2u)
-    for (uint j = 0u; j < 4u; ++j) {
-      float factor;
-      cls[j] = frontierNodeClass(level, 4u * parent + j, gFrCaps, factor);
-      v[j] = hreal(factor);
+  [[dont_unroll]] for (uint j = 0u; j < (parentClass == 2u ? 4u : 0u); ++j) {
+    float factor;
+    uint c = frontierNodeClass(level, 4u * parent + j, gFrCaps, factor);
+    [[unroll]] for (uint i = 0u; i < 4u; ++i) {
+      cls[i] = i == j ? c : cls[i];
+      v[i] = i == j ? hreal(factor) : v[i];
     }
+  }
   hreal b[4] = hreal[4](1.0, 1.0, 1.0, 1.0);
   if (product) {
     hreal top = 0.0;
-    for (uint j = 0u; j < 4u; ++j) {
+    [[dont_unroll]] for (uint j = 0u; j < (product ? 4u : 0u); ++j) {
+      hreal wj = w[0];
+      uint cj = cls[0];
+      [[unroll]] for (uint i = 1u; i < 4u; ++i) {
+        wj = i == j ? w[i] : wj;
+        cj = i == j ? cls[i] : cj;
+      }
       vec3 d = frontierFactorDirection(first + j);
-      if (w[j] > 0.0 && cls[j] != 0u)
-        b[j] = gFrLambert ? hreal(max(dot3(d, ht.n), 0.0)) : hreal(htBrdfValue(d));
-      else
-        b[j] = 0.0;
-      top = max(top, b[j]);
+      hreal bj = 0.0;
+      if (wj > 0.0 && cj != 0u) bj = gFrLambert ? hreal(max(dot3(d, ht.n), 0.0)) : hreal(htBrdfValue(d));
+      [[unroll]] for (uint i = 0u; i < 4u; ++i) b[i] = i == j ? bj : b[i];
+      top = max(top, bj);
     }
     for (uint j = 0u; j < 4u; ++j) b[j] = top > 0.0 ? max(b[j], mulF(hreal(gFrBrdfFloor), top)) : hreal(1.0);
   }
