@@ -904,6 +904,14 @@ GpuFrontierPoint frontierResume(vec3 position, vec3 normal, vec3 wo, GpuMaterial
   return pt;
 }
 
+// A direction's term f / (n_t p_t + n_b p_b), `denom` the sum.
+void frontierAddDirection(Shading sh, vec3 wi, uint leaf, hreal denom, inout accvec3 sum) {
+  vec3 f = reflected(sh, wi, envRadiance(leaf));
+  if (f == vec3(0.0)) return;
+  precise accvec3 total = sum + accvec3(f) / denom;
+  sum = total;
+}
+
 // Directions [begin, end) of the n: the table's first, then the BRDF's,
 // each weighted by the balance heuristic over the two counts.
 uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inout Sampler smp, inout accvec3 sum,
@@ -943,42 +951,40 @@ uint frontierSamples(Shading sh, GpuFrontierPoint pt, uint begin, uint end, inou
                         divF(mulF(colourScale.z, gFrTotal), n));
   }
   bool colourControl = colourScale != hvec3(0.0);
+  // The table's directions, then the BRDF's, in loops of their own: llvmpipe
+  // runs all of a loop's body for its SIMD group.
   uint j = begin;
+  for (; j < min(end, nt); ++j) {
+    directions += 1u;
+    samplerStart(smp, j);
+    precise hreal x = (hreal(j) + u) / hreal(nt);
+    vec2 jitter = samplerNext2D(smp);
+    hvec3 hp;
+    uint k;
+    hreal ptable;
+    uint leaf = frontierSample(x, jitter, hp, ptable, k);
+    if (colourControl) {
+      hvec3 v = frontierColourOf(k, leaf);
+      hvec3 d = hvec3(subF(gFrColourR, v.x), subF(gFrColourG, v.y), subF(gFrColourB, v.z));
+      sum = frontierAdd3(sum, hvec3(mulF(colourScale.x, d.x), mulF(colourScale.y, d.y), mulF(colourScale.z, d.z)));
+    }
+    vec3 wi = fromHealpixFrame(hp);
+    hreal pb = wb > 0.0 ? hreal(bsdfPdf(bm, sh.woLocal, toLocal(sh.frame, wi))) : hreal(0.0);
+    precise hreal denom = wt * ptable + wb * pb;
+    frontierAddDirection(sh, wi, leaf, denom, sum);
+  }
   for (; j < end; ++j) {
     directions += 1u;
-    vec3 wi;
-    uint leaf;
-    hreal ptable, pb;  // the two techniques' densities
-    if (j < nt) {
-      samplerStart(smp, j);
-      precise hreal x = (hreal(j) + u) / hreal(nt);
-      vec2 jitter = samplerNext2D(smp);
-      hvec3 hp;
-      uint k;
-      leaf = frontierSample(x, jitter, hp, ptable, k);
-      if (colourControl) {
-        hvec3 v = frontierColourOf(k, leaf);
-        hvec3 d = hvec3(subF(gFrColourR, v.x), subF(gFrColourG, v.y), subF(gFrColourB, v.z));
-        sum = frontierAdd3(sum, hvec3(mulF(colourScale.x, d.x), mulF(colourScale.y, d.y), mulF(colourScale.z, d.z)));
-      }
-      wi = fromHealpixFrame(hp);
-      pb = wb > 0.0 ? hreal(bsdfPdf(bm, sh.woLocal, toLocal(sh.frame, wi))) : hreal(0.0);
-    } else {
-      samplerStart(smp, j - nt);
-      smp.dimension = 1u;
-      vec3 local = sampleBsdf(bm, sh.woLocal, samplerNext2D(smp));
-      float pdf = bsdfPdf(bm, sh.woLocal, local);
-      if (!(pdf > 0.0)) continue;
-      pb = hreal(pdf);
-      wi = toWorld(sh.frame, local);
-      leaf = envPixelOf(wi);
-      ptable = frontierPdf(leaf);
-    }
-    vec3 f = reflected(sh, wi, envRadiance(leaf));
-    if (f == vec3(0.0)) continue;
-    precise hreal denom = wt * ptable + wb * pb;
-    precise accvec3 total = sum + accvec3(f) / denom;
-    sum = total;
+    samplerStart(smp, j - nt);
+    smp.dimension = 1u;
+    vec3 local = sampleBsdf(bm, sh.woLocal, samplerNext2D(smp));
+    float pdf = bsdfPdf(bm, sh.woLocal, local);
+    if (!(pdf > 0.0)) continue;
+    vec3 wi = toWorld(sh.frame, local);
+    uint leaf = envPixelOf(wi);
+    hreal ptable = frontierPdf(leaf);
+    precise hreal denom = wt * ptable + wb * hreal(pdf);
+    frontierAddDirection(sh, wi, leaf, denom, sum);
   }
   return j - begin;
 }
