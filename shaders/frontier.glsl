@@ -689,8 +689,14 @@ hreal frontierPdf(uint leaf) {
     uint c[4];
     frontierChildren(level, node >> 2, cls, w, c);
     hreal sum = addF(addF(addF(w[0], w[1]), w[2]), w[3]);
-    p = mulF(p, divF(w[node & 3u], sum));
-    cls = c[node & 3u];
+    hreal chosen = w[0];
+    uint chosenClass = c[0];
+    [[unroll]] for (uint i = 1u; i < 4u; ++i) {  // at constant indices, as in frontierSample
+      chosen = (node & 3u) == i ? w[i] : chosen;
+      chosenClass = (node & 3u) == i ? c[i] : chosenClass;
+    }
+    p = mulF(p, divF(chosen, sum));
+    cls = chosenClass;
   }
   return divF(p, envPixelSolidAngle());
 }
@@ -744,17 +750,30 @@ uint frontierSample(hreal x, vec2 jitter, out hvec3 dirHp, out hreal pdf, out ui
     frontierChildren(level, node, cls, a, c);
     hreal sum = addF(addF(addF(a[0], a[1]), a[2]), a[3]);
     hreal want = mulF(t, sum);
+    // The child whose share of the weights holds want, by selects at
+    // constant indices (llvmpipe reads an array at a lane's own index lane
+    // by lane): past every child with no weight or wholly below want, then
+    // back to the last child with weight.
     hreal acc = 0.0;
     uint j = 0u;
-    while (j < 3u && (a[j] <= 0.0 || addF(acc, a[j]) <= want)) {
-      acc = addF(acc, a[j]);
-      ++j;
+    bool on = true;
+    [[unroll]] for (uint i = 0u; i < 3u; ++i) {
+      on = on && (a[i] <= 0.0 || addF(acc, a[i]) <= want);
+      acc = on ? addF(acc, a[i]) : acc;
+      j = on ? i + 1u : j;
     }
-    while (a[j] <= 0.0) --j;  // the last child with weight
-    t = clamp(divF(subF(want, acc), a[j]), hreal(0.0), hreal(1.0));
-    p = mulF(p, divF(a[j], sum));
-    node = 4u * node + j;
-    cls = c[j];
+    uint pick = j;
+    [[unroll]] for (uint i = 0u; i < 4u; ++i) pick = i <= j && a[i] > 0.0 ? i : pick;
+    hreal chosen = a[0];
+    uint chosenClass = c[0];
+    [[unroll]] for (uint i = 1u; i < 4u; ++i) {
+      chosen = pick == i ? a[i] : chosen;
+      chosenClass = pick == i ? c[i] : chosenClass;
+    }
+    t = clamp(divF(subF(want, acc), chosen), hreal(0.0), hreal(1.0));
+    p = mulF(p, divF(chosen, sum));
+    node = 4u * node + pick;
+    cls = chosenClass;
   }
   pdf = divF(p, envPixelSolidAngle());
   dirHp = pixToVec(ht.order, node, jitter.x, jitter.y);
