@@ -57,14 +57,17 @@ sanitize="-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-rec
 BUILD_DIR=${ASAN_BUILD_DIR:-build-asan} BUILD_TYPE=RelWithDebInfo tools/build.sh \
   -DCMAKE_C_FLAGS="$sanitize" -DCMAKE_CXX_FLAGS="$sanitize" \
   -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined"
-# Any report ends the process with a non-zero status; leaks are reported.
-saved_asan=${ASAN_OPTIONS-} saved_ubsan=${UBSAN_OPTIONS-}
+# Any report ends the process with a non-zero status; leaks are reported,
+# but for the block the Vulkan driver keeps for good (tools/lsan.supp).
+saved_asan=${ASAN_OPTIONS-} saved_ubsan=${UBSAN_OPTIONS-} saved_lsan=${LSAN_OPTIONS-}
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:check_initialization_order=1:strict_string_checks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/tools/lsan.supp:print_suppressions=0}
 run_ctest "asan+ubsan" "${ASAN_BUILD_DIR:-build-asan}" -LE slow "$@"
-export ASAN_OPTIONS=$saved_asan UBSAN_OPTIONS=$saved_ubsan
+export ASAN_OPTIONS=$saved_asan UBSAN_OPTIONS=$saved_ubsan LSAN_OPTIONS=$saved_lsan
 [ -n "$ASAN_OPTIONS" ] || unset ASAN_OPTIONS
 [ -n "$UBSAN_OPTIONS" ] || unset UBSAN_OPTIONS
+[ -n "$LSAN_OPTIONS" ] || unset LSAN_OPTIONS
 t2=$SECONDS
 
 # The CPU reference must draw the same numbers whichever conforming compiler
