@@ -632,7 +632,7 @@ void frontierChildren(uint level, uint parent, uint parentClass, out hreal w[4],
   hreal b[4] = hreal[4](1.0, 1.0, 1.0, 1.0);
   if (product) {
     hreal top = 0.0;
-    [[dont_unroll]] for (uint j = 0u; j < (product ? 4u : 0u); ++j) {
+    [[dont_unroll]] for (uint j = 0u; j < 4u; ++j) {
       hreal wj = w[0];
       uint cj = cls[0];
       [[unroll]] for (uint i = 1u; i < 4u; ++i) {
