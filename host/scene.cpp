@@ -237,8 +237,11 @@ Scene parseSceneText(const std::string& text, const std::string& path) {
   for (size_t i = 0; i < planes.size(); ++i) {
     Obj p(planes[i], fmt::format("{}: planes[{}]", path, i), {"point", "normal", "material"});
     glm::vec3 n = p.vec3("normal");
-    if (glm::length(n) < 1e-6f) p.fail("\"normal\" must be non-zero");
-    scene.planes.push_back({p.vec3("point"), glm::normalize(n), materialIndex(p)});
+    // Divided by its largest component first, so that neither a long normal's
+    // squared length overflows nor a short one's underflows.
+    float largest = std::max({std::abs(n.x), std::abs(n.y), std::abs(n.z)});
+    if (largest == 0.0f) p.fail("\"normal\" must be non-zero");
+    scene.planes.push_back({p.vec3("point"), glm::normalize(n / largest), materialIndex(p)});
   }
   if (scene.spheres.empty() && scene.planes.empty()) top.fail("the scene has no spheres and no planes");
   return scene;

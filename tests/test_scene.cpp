@@ -81,12 +81,28 @@ TEST(Scene, ErrorsNameTheProblem) {
       {edit("\"albedo\": 0.5", "\"albedo\": [0.5, 2, 0.5]"), "must lie in [0, 1]"},
       {edit("\"spheres\": [{\"center\": [0, 0, 0], \"radius\": 1, \"material\": \"m\"}]", "\"spheres\": []"),
        "no spheres and no planes"},
+      {edit("\"spheres\"", "\"planes\": [{\"point\": [0, 0, 0], \"normal\": [0, 0, 0], \"material\": \"m\"}], \"spheres\""),
+       "\"normal\" must be non-zero"},
   };
   for (const Case& c : cases) {
     std::string msg = errorOf(c.text);
     EXPECT_NE(msg.find(c.expect), std::string::npos) << "expected \"" << c.expect << "\" in \"" << msg << "\"";
     EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
     EXPECT_EQ(msg.rfind("s.json", 0), 0u) << msg;
+  }
+}
+
+// A normal is a direction whatever its length, even one whose squared length
+// overflows or underflows single precision.
+TEST(Scene, PlaneNormalsOfAnyLengthAreUnit) {
+  for (const char* normal : {"[3e30, 4e30, 0]", "[3e-30, 4e-30, 0]", "[0, 3, 4]"}) {
+    Scene s = parseScene(edit("\"spheres\"", std::string("\"planes\": [{\"point\": [0, 0, 0], \"normal\": ") +
+                                                normal + ", \"material\": \"m\"}], \"spheres\""),
+                         "s.json");
+    ASSERT_EQ(s.planes.size(), 1u);
+    glm::vec3 n = s.planes[0].normal;
+    EXPECT_NEAR(glm::length(n), 1.0f, 1e-6f) << normal;
+    EXPECT_NEAR(std::max(n.x, std::max(n.y, n.z)), 0.8f, 1e-6f) << normal;
   }
 }
 
