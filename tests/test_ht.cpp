@@ -64,6 +64,18 @@ std::map<uint64_t, std::multiset<uint64_t>> fullScan(const HtPoint& ht, uint32_t
   return accepted;
 }
 
+// One traversal with the pixel seed, offset and jitter that run `run` of
+// `stream` draws; `samples` receives its samples.
+void traverseRun(const HtPoint& ht, uint32_t run, uint32_t stream, std::vector<HtSample>& samples) {
+  Rng rng(run, stream);
+  samples.clear();
+  HtCounters counters;
+  const uint32_t seed = rng.nextUint();
+  const float u = rng.next();
+  PixelSampler jitter(SamplerKind::Stratified, rng.nextUint());
+  ht.traverse(seed, u, jitter, samples, counters);
+}
+
 }  // namespace
 
 // Pruning never loses a candidate: the traversal accepts exactly what a scan
@@ -125,13 +137,7 @@ TEST(Ht, DensityIsProportionalToH) {
       }
       std::vector<HtSample> samples;
       for (int run = 0; run < runs; ++run) {
-        Rng rng(1000 + run, 5);
-        samples.clear();
-        HtCounters counters;
-        const uint32_t seed = rng.nextUint();
-        const float u = rng.next();
-        PixelSampler jitter(SamplerKind::Stratified, rng.nextUint());
-        ht.traverse(seed, u, jitter, samples, counters);
+        traverseRun(ht, uint32_t(1000 + run), 5, samples);
         for (const HtSample& x : samples) ++observed[binIndex(binOrder, s.scene.environment.toHealpixFrame(x.dir))];
       }
       Chi2Result r = chi2Test(observed, expected);
@@ -161,13 +167,7 @@ TEST(Ht, ExpectedSampleCount) {
         double sum = 0.0, sumSq = 0.0;
         std::vector<HtSample> samples;
         for (int run = 0; run < runs; ++run) {
-          Rng rng(run, 9);
-          samples.clear();
-          HtCounters counters;
-          const uint32_t seed = rng.nextUint();
-          const float u = rng.next();
-          PixelSampler jitter(SamplerKind::Stratified, rng.nextUint());
-          ht.traverse(seed, u, jitter, samples, counters);
+          traverseRun(ht, uint32_t(run), 9, samples);
           sum += double(samples.size());
           sumSq += double(samples.size()) * double(samples.size());
         }
@@ -451,13 +451,7 @@ TEST(HtSlow, BiasedConvergesToUnbiased) {
         uint64_t averaged = 0, total = 0;
         std::vector<HtSample> samples;
         for (int run = 0; run < 2000; ++run) {
-          Rng rng(run, 3);
-          samples.clear();
-          HtCounters counters;
-          const uint32_t seed = rng.nextUint();
-          const float u = rng.next();
-          PixelSampler jitter(SamplerKind::Stratified, rng.nextUint());
-          ht.traverse(seed, u, jitter, samples, counters);
+          traverseRun(ht, uint32_t(run), 3, samples);
           for (const HtSample& x : samples) averaged += x.averaged;
           total += samples.size();
         }
