@@ -6,10 +6,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
-#include <cstring>
 
 #include "environment.h"
 #include "image_io.h"
+#include "one_line.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
@@ -23,11 +23,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     ht::Environment env = ht::environmentFromEquirect(image, 1, 0.0f, 1.0f);
     if (env.radiance.size() != 48) std::abort();
   } catch (const ht::Error& e) {
-    // One line of printable text.
-    const char* m = e.what();
-    if (*m == '\0') std::abort();
-    for (; *m != '\0'; ++m)
-      if ((unsigned char)*m < 0x20 || *m == 0x7f) std::abort();
+    ht::fuzz::requireOneLine(e.what());
   }
   return 0;
 }

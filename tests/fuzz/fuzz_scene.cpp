@@ -6,11 +6,11 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
-#include <cstring>
 #include <string>
 
 #include <glm/geometric.hpp>
 
+#include "one_line.h"
 #include "scene.h"
 
 namespace {
@@ -42,11 +42,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       if (!finite(ray.origin) || !finite(ray.dir) || std::abs(glm::length(ray.dir) - 1.0f) > 1e-3f) std::abort();
     }
   } catch (const ht::Error& e) {
-    // One line of printable text.
-    const char* m = e.what();
-    if (*m == '\0') std::abort();
-    for (; *m != '\0'; ++m)
-      if ((unsigned char)*m < 0x20 || *m == 0x7f) std::abort();
+    ht::fuzz::requireOneLine(e.what());
   }
   return 0;
 }
