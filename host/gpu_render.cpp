@@ -880,9 +880,8 @@ void GpuRenderer::Impl::renderTile(const RenderSettings& s, GpuPush& push, uint3
   for (uint32_t batch = 0;;) {
     // The sampling methods need ceil(spp / limit) batches; HT's traversal
     // takes some 40 steps per sample, read back to see when it is done.
-    // ht-frontier builds its tables in a batch of their own.
     const uint64_t expected = htMethod ? (40 * spp + 400 + limit - 1) / limit
-                                       : (spp + limit - 1) / limit + (s.method == Method::HtFrontier ? 1 : 0);
+                                       : (spp + limit - 1) / limit;
     // Past them, half as many again as have run: a finished pixel returns at
     // once from a batch, so the batches after the slowest one cost little.
     const uint64_t wanted = batch < expected ? expected - batch : batch / 2;

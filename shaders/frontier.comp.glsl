@@ -1,5 +1,7 @@
-// ht-frontier (frontier.glsl): a pixel's first batch builds its table, the
-// later ones draw its n directions, as many per batch as pc.batchLimit.
+// ht-frontier (frontier.glsl): a pixel's first batch builds its table, and
+// every batch, the first too, draws the next of its n directions, as many
+// as pc.batchLimit. The directions resume from the stored point also in the
+// first batch, which makes the same image whatever the batches.
 #version 460
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_scalar_block_layout : require
@@ -22,7 +24,8 @@ void main() {
                                 gPixel.rng, nodes);
       gPixel.htNodes = nodes;
       gPixel.done = work ? 0u : 1u;
-    } else {
+    }
+    if (gPixel.done == 0u) {
       GpuFrontierPoint pt = frontierResume(job.position, job.normal, job.wo, job.sh.material, job.slot);
       Sampler smp = pixelSampler();
       accvec3 sum = sumFromBits(gPixel.sum);

@@ -13,7 +13,7 @@
 // applies its own caps to the faces they reach; with a specular lobe, the
 // lobe is sampled apart.
 //
-// The first batch of a pixel builds its table; the later ones draw
+// The first batch of a pixel builds its table; every batch draws
 // directions from it (GpuFrontierPoint carries the rest).
 #ifndef HT_FRONTIER_GLSL
 #define HT_FRONTIER_GLSL
@@ -857,7 +857,7 @@ void frontierBind(uint slot) {
   gFrSegCum = frontierReals(gFs.offSegCum);
 }
 
-// The first batch: the point's table and everything the later batches
+// The first batch: the point's table and everything the batches' directions
 // read. False when there is nothing to sample.
 bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bool planar, uint slot, uint n,
                    inout uint rng, inout uint htNodes) {
@@ -899,7 +899,7 @@ bool frontierBegin(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, bo
   return true;
 }
 
-// A later batch: the point as the first left it.
+// A batch's directions: the point as the first batch left it.
 GpuFrontierPoint frontierResume(vec3 position, vec3 normal, vec3 wo, GpuMaterial material, uint slot) {
   frontierSettings();
   htInit(position, normal, wo, material);
