@@ -533,8 +533,9 @@ std::vector<glm::vec3> sharedFrontierNormals(const Scene& scene) {
 }
 
 // A pixel's ht-frontier scratch, in bytes per pixel: GpuFrontierPoint, then
-// each array 8-byte aligned (the shader multiplies by the tile's pixels,
-// which it lays side by side), for f's capacities and `real`-byte reals.
+// each array 8-byte aligned (the shader multiplies by HT_FRONTIER_LANES,
+// the pixels of a block, which it lays side by side), for f's capacities
+// and `real`-byte reals.
 void layOutFrontierScratch(uint32_t real, GpuFrontierScene& f) {
   const uint32_t candidates = 12 + 4 * f.refinements;
   uint32_t at = uint32_t(sizeof(GpuFrontierPoint));
@@ -782,7 +783,9 @@ std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettin
   const VkDeviceSize wisBytes = tilePixels * HT_WIS_TOP_NODES * sizeof(double);
   const bool wisMethod = s.method == Method::Wis || s.method == Method::WisBiased;
   if (wisMethod && wisScratch.size() < wisBytes) wisScratch = vk::Buffer(ctx, wisBytes, vk::MemoryUse::DeviceLocal);
-  const VkDeviceSize frontierBytes = tilePixels * frontier.pixelBytes;
+  // ht-frontier's scratch: blocks of HT_FRONTIER_LANES pixels of a tile row.
+  const VkDeviceSize rowBlocks = (tileW + HT_FRONTIER_LANES - 1) / HT_FRONTIER_LANES;
+  const VkDeviceSize frontierBytes = rowBlocks * HT_FRONTIER_LANES * tileH * frontier.pixelBytes;
   if (frontierMethod && frontierScratch.size() < frontierBytes)
     frontierScratch = vk::Buffer(ctx, frontierBytes, vk::MemoryUse::DeviceLocal);
   static_assert(HT_QUEUE_BYTES == HT_PENDING_SLOTS * sizeof(GpuHtPending) + HT_LEAF_SLOTS * sizeof(GpuHtLeaf));

@@ -104,6 +104,7 @@
 // plane), GpuFrontierPoint::table of a point with a table of its own, and
 // GpuFrontierScene::flags.
 #define HT_FRONTIER_SEGMENTS 192
+#define HT_FRONTIER_LANES 8  // ht-frontier's scratch: blocks of 8 pixels of a tile row, element by element
 #define HT_FRONTIER_MAX_SHARED 32
 // ht-frontier: the level of the environment's average around the mirror
 // direction that sets a flat surface's specular lobe count.

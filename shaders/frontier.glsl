@@ -3,9 +3,11 @@
 // seed (HT_FP64; the fp32 shader keeps the masses in float).
 //
 // A point's own table is refined in its scratch (GpuFrontierScene's
-// offsets), laid out element by element with the tile's pixels side by side
-// (element k of pixel p at k x pixels + p), so that neighbouring invocations
-// read neighbouring words: candidates and a binary heap on (priority, index), whose largest
+// offsets). The scratch is cut into blocks of HT_FRONTIER_LANES pixels of a
+// tile row, each block laid out element by element with its pixels side by
+// side (element k of its pixel j at k x HT_FRONTIER_LANES + j), so that the
+// invocations of a SIMD group read neighbouring words and a block's arrays
+// stay within few pages: candidates and a binary heap on (priority, index), whose largest
 // element is unique, so it splits the nodes std::pop_heap would, in the same
 // order. The nodes the refinement leaves unsplit are read out depth first,
 // which is the nested index's order the CPU sorts them into. A flat
@@ -23,8 +25,8 @@
 #define gFs scene.frontier.f
 #define kFrontierNone 0xFFFFFFFFu
 
-// The pixel's scratch: the tile's pixels (the stride of its arrays) and
-// its place among them.
+// The pixel's scratch: its block, the stride of its arrays (the block's
+// pixels) and its place in the block.
 uint64_t gFrBase;
 uint gFrPixels, gFrSlot;
 // The table it samples: its header (GpuFrontierHeader's words), nodes,
@@ -848,9 +850,11 @@ bool frontierSpecularApart(GpuMaterial material, uint table) {
 
 // Points the globals at the pixel's scratch.
 void frontierBind(uint slot) {
-  gFrBase = pc.frontierScratch;
-  gFrPixels = pc.tileWidth * pc.tileHeight;
-  gFrSlot = slot;
+  uint x = slot % pc.tileWidth, y = slot / pc.tileWidth;
+  uint block = y * ((pc.tileWidth + HT_FRONTIER_LANES - 1u) / HT_FRONTIER_LANES) + x / HT_FRONTIER_LANES;
+  gFrBase = pc.frontierScratch + uint64_t(block) * uint64_t(HT_FRONTIER_LANES * gFs.pixelBytes);
+  gFrPixels = HT_FRONTIER_LANES;
+  gFrSlot = x % HT_FRONTIER_LANES;
   gFrPointMass = frontierReals(gFs.offPointMass);
   gFrPointCum = frontierReals(gFs.offPointCum);
   gFrPointClass = frontierUints(gFs.offPointClass);
