@@ -770,28 +770,33 @@ std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettin
   const uint32_t tileW = std::min<uint32_t>(side, uint32_t(s.width));
   const uint32_t tileH = std::min<uint32_t>(side, uint32_t(s.height));
   const VkDeviceSize tilePixels = VkDeviceSize(tileW) * tileH;
-  if (pixels.size() < tilePixels * sizeof(GpuPixel)) {
-    pixels = vk::Buffer(ctx, tilePixels * sizeof(GpuPixel), vk::MemoryUse::DeviceLocal);
+  // lavapipe's device memory is the process's, its pages made at their first
+  // write: a new buffer is filled here, before the render's clock starts, as
+  // a GPU's memory is in place once allocated.
+  std::vector<vk::Buffer*> fresh;
+  auto deviceBuffer = [&](vk::Buffer& b, VkDeviceSize bytes) {
+    if (b.size() >= bytes) return false;
+    b = vk::Buffer(ctx, bytes, vk::MemoryUse::DeviceLocal);
+    fresh.push_back(&b);
+    return true;
+  };
+  if (deviceBuffer(pixels, tilePixels * sizeof(GpuPixel))) {
     pixelsHost = vk::Buffer(ctx, tilePixels * sizeof(GpuPixel), vk::MemoryUse::Readback);
     pipeline->setBuffer(HT_BINDING_PIXELS, pixels);
   }
-  if (pixelState.size() < tilePixels * sizeof(GpuPixelState))
-    pixelState = vk::Buffer(ctx, tilePixels * sizeof(GpuPixelState), vk::MemoryUse::DeviceLocal);
-  const VkDeviceSize tsisBytes = tilePixels * HT_TSIS_REGIONS * sizeof(GpuTsisSlot);
-  if (s.method == Method::Tsis && tsisScratch.size() < tsisBytes)
-    tsisScratch = vk::Buffer(ctx, tsisBytes, vk::MemoryUse::DeviceLocal);
-  const VkDeviceSize wisBytes = tilePixels * HT_WIS_TOP_NODES * sizeof(double);
-  const bool wisMethod = s.method == Method::Wis || s.method == Method::WisBiased;
-  if (wisMethod && wisScratch.size() < wisBytes) wisScratch = vk::Buffer(ctx, wisBytes, vk::MemoryUse::DeviceLocal);
+  deviceBuffer(pixelState, tilePixels * sizeof(GpuPixelState));
+  if (s.method == Method::Tsis) deviceBuffer(tsisScratch, tilePixels * HT_TSIS_REGIONS * sizeof(GpuTsisSlot));
+  if (s.method == Method::Wis || s.method == Method::WisBiased)
+    deviceBuffer(wisScratch, tilePixels * HT_WIS_TOP_NODES * sizeof(double));
   // ht-frontier's scratch: blocks of HT_FRONTIER_LANES pixels of a tile row.
   const VkDeviceSize rowBlocks = (tileW + HT_FRONTIER_LANES - 1) / HT_FRONTIER_LANES;
-  const VkDeviceSize frontierBytes = rowBlocks * HT_FRONTIER_LANES * tileH * frontier.pixelBytes;
-  if (frontierMethod && frontierScratch.size() < frontierBytes)
-    frontierScratch = vk::Buffer(ctx, frontierBytes, vk::MemoryUse::DeviceLocal);
+  if (frontierMethod) deviceBuffer(frontierScratch, rowBlocks * HT_FRONTIER_LANES * tileH * frontier.pixelBytes);
   static_assert(HT_QUEUE_BYTES == HT_PENDING_SLOTS * sizeof(GpuHtPending) + HT_LEAF_SLOTS * sizeof(GpuHtLeaf));
-  const VkDeviceSize pendingBytes = tilePixels * HT_QUEUE_BYTES;
-  if (htMethod && htPending.size() < pendingBytes)
-    htPending = vk::Buffer(ctx, pendingBytes, vk::MemoryUse::DeviceLocal);
+  if (htMethod) deviceBuffer(htPending, tilePixels * HT_QUEUE_BYTES);
+  if (!fresh.empty())
+    ctx.submitAndWait([&](VkCommandBuffer cmd) {
+      for (vk::Buffer* b : fresh) ctx.fn.vkCmdFillBuffer(cmd, b->handle(), 0, VK_WHOLE_SIZE, 0);
+    });
   const VkDeviceSize logBytes = tilePixels * HT_SAMPLE_LOG_SLOTS * sizeof(GpuHtSample);
   if (htMethod && recordHtSamples && htSampleLog.size() < logBytes)
     htSampleLog = vk::Buffer(ctx, logBytes, vk::MemoryUse::Readback);
