@@ -72,11 +72,11 @@ VkDebugUtilsMessengerCreateInfoEXT messengerInfo(ValidationLog* counters) {
 // a wrong VK_DRIVER_FILES gives).
 VkInstance createInstance(bool validation, ValidationLog* counters) {
   // lavapipe hands each of its threads one run of a dispatch's workgroups,
-  // so the slowest run sets the dispatch's time; with twice as many threads
-  // as cores the system evens the runs out (ht-frontier on 2 cores: 1.02 s
-  // to 0.73 s, docs/ht.md). Read when the driver loads; a value set by the
+  // so the slowest run sets the dispatch's time; with four times as many
+  // threads as cores the system evens the runs out (docs/ht.md, "The
+  // traversal on the GPU"). Read when the driver loads; a value set by the
   // user is kept, and other drivers ignore it.
-  const unsigned threads = std::clamp(2 * std::thread::hardware_concurrency(), 2u, 32u);
+  const unsigned threads = std::clamp(4 * std::thread::hardware_concurrency(), 4u, 32u);
   setenv("LP_NUM_THREADS", std::to_string(threads).c_str(), 0);
   if (volkInitialize() != VK_SUCCESS)
     throw Error("no Vulkan loader: libvulkan.so.1 not found (Debian: apt-get install libvulkan1 mesa-vulkan-drivers)");
