@@ -255,7 +255,7 @@ struct GpuRenderer::Impl {
   vk::Buffer tsisScratch;  // GpuTsisSlot per region and tile pixel
   vk::Buffer wisScratch;   // HT_WIS_TOP_NODES doubles per tile pixel
   vk::Buffer htPending;    // per tile pixel its pending samples and recorded leaves
-  vk::Buffer frontierScratch;  // ht-frontier: GpuFrontierScene::pixelBytes per tile pixel
+  vk::Buffer frontierScratch;  // ht-frontier: GpuFrontierScene::pixelBytes per tile pixel, rows in blocks of HT_FRONTIER_LANES
   // The method's tables, uploaded at their first render (the scene struct
   // uploaded again), with what they were made from.
   GpuScene scene{};

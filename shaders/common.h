@@ -465,7 +465,7 @@ struct GpuPush {
   uint canaryLoops; // iterations of the loop that tells whether loops were cut short
   uint canaryZero;  // always 0: keeps the compiler from folding that loop away
   HT_CHUNK_REF(HtPendingList) htPending;  // ht*: HT_QUEUE_BYTES per tile pixel
-  uint64_t frontierScratch;  // ht-frontier: GpuFrontierScene::pixelBytes per tile pixel
+  uint64_t frontierScratch;  // ht-frontier: GpuFrontierScene::pixelBytes per tile pixel, rows in blocks of HT_FRONTIER_LANES
 };
 
 #ifdef __cplusplus
