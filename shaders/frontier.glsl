@@ -29,33 +29,52 @@
 // pixels) and its place in the block.
 uint64_t gFrBase;
 uint gFrPixels, gFrSlot;
-// The table it samples: its header (GpuFrontierHeader's words), nodes,
-// order, masses and prefix sums, each element gFrStride apart (the tile's
-// pixels for an own table, 1 for a shared one).
-FrontierUints gFrHeader;
-FrontierNodes gFrNodes;
-FrontierUints gFrOrder;
-FrontierReals gFrMass, gFrCum;
-FrontierVec3s gFrKappa;  // an own table's FrontierNode::kappa (a shared one's are in gFrColour)
-uint gFrStride;
+// The table it samples, a shared one (gFrShared: table gFrTable, its nodes
+// from gFrNodeBase and its prefix sums from gFrCumBase in the shared
+// arrays) or the pixel's own: its header (GpuFrontierHeader's words),
+// nodes, order, masses and prefix sums, each element gFrStride apart (the
+// block's pixels for an own table, 1 for a shared one). The arrays'
+// addresses are made where they are read, from the offsets (alike for
+// every invocation) and bases, rather than held per invocation as 64-bit
+// addresses, which took a GPU's compiler 40 more registers for the
+// pipeline (docs/ht.md, "On a real GPU").
+uint gFrTable, gFrNodeBase, gFrCumBase;
+uint gFrOffHeader, gFrOffNodes, gFrOffOrder, gFrOffMass, gFrOffCum, gFrOffKappa;
+uint64_t gFrShHeaders, gFrShNodes, gFrShOrder, gFrShMass, gFrShCum, gFrShColour;
+#define kFrontierHeaderBytes uint64_t(4 * (HT_FRONTIER_SEGMENTS + 20))
+#define gFrHeader \
+  (gFrShared ? FrontierUints(gFrShHeaders + uint64_t(gFrTable) * kFrontierHeaderBytes) : frontierUints(gFrOffHeader))
+#define gFrNodes (gFrShared ? FrontierNodes(gFrShNodes + uint64_t(gFrNodeBase) * 24ul) : frontierNodes(gFrOffNodes))
+#define gFrOrder (gFrShared ? FrontierUints(gFrShOrder + uint64_t(gFrNodeBase) * 4ul) : frontierUints(gFrOffOrder))
+#define gFrMass \
+  (gFrShared ? FrontierReals(gFrShMass + uint64_t(gFrNodeBase) * uint64_t(kFrontierRealBytes)) : frontierReals(gFrOffMass))
+#define gFrCum \
+  (gFrShared ? FrontierReals(gFrShCum + uint64_t(gFrCumBase) * uint64_t(kFrontierRealBytes)) : frontierReals(gFrOffCum))
+// An own table's FrontierNode::kappa (a shared one's are in gFrColour).
+#define gFrKappa frontierVec3s(gFrOffKappa)
+#define gFrColour FrontierColourNodes(gFrShColour + uint64_t(gFrNodeBase) * 28ul)
+#define gFrStride (gFrShared ? 1u : gFrPixels)
 // The point's masses, classes and prefix sums over a shared table on the
 // faces in gFrTouched, and the mass of the segments before each.
-FrontierReals gFrPointMass, gFrPointCum, gFrSegCum;
-FrontierUints gFrPointClass;
+uint gFrOffPointMass, gFrOffPointCum, gFrOffSegCum, gFrOffPointClass;
+#define gFrPointMass frontierReals(gFrOffPointMass)
+#define gFrPointCum frontierReals(gFrOffPointCum)
+#define gFrSegCum frontierReals(gFrOffSegCum)
+#define gFrPointClass frontierUints(gFrOffPointClass)
 uint gFrTouched;
 hreal gFrTotal;
 bool gFrLambert;
 // The table is a shared one (its colours in gFrColour), and the point's
 // Frontier::colourAverage.
 bool gFrShared;
-FrontierColourNodes gFrColour;
 hreal gFrColourR, gFrColourG, gFrColourB;
 
 // The settings read per node, copied once from GpuFrontierScene (read
 // through a device address, which llvmpipe loads lane by lane at each
 // read): the levels' cone radii (cos, sin), the floor of a partly
 // covered node's factor, the flags, the BRDF floor, the coarse ratio, the
-// refinements.
+// refinements; and the scratch arrays' offsets and the shared tables'
+// arrays, above.
 float gFrLevelCos[HT_MAX_ORDER + 2];
 float gFrLevelSin[HT_MAX_ORDER + 2];
 float gFrMinPartial;
@@ -72,6 +91,23 @@ void frontierSettings() {
   gFrBrdfFloor = gFs.brdfFloor;
   gFrCoarseRatio = gFs.coarseRatio;
   gFrRefinements = gFs.refinements;
+  gFrOffPointMass = gFs.offPointMass;
+  gFrOffPointCum = gFs.offPointCum;
+  gFrOffSegCum = gFs.offSegCum;
+  gFrOffPointClass = gFs.offPointClass;
+  gFrOffHeader = gFs.offHeader;
+  gFrOffNodes = gFs.offNodes;
+  gFrOffOrder = gFs.offOrder;
+  gFrOffMass = gFs.offMass;
+  gFrOffCum = gFs.offCum;
+  gFrOffKappa = gFs.offKappa;
+  FrontierSceneRef s = scene.frontier;
+  gFrShHeaders = uint64_t(s.f.sharedHeaders);
+  gFrShNodes = uint64_t(s.f.sharedNodes);
+  gFrShOrder = uint64_t(s.f.sharedOrder);
+  gFrShMass = uint64_t(s.f.sharedMass);
+  gFrShCum = uint64_t(s.f.sharedCum);
+  gFrShColour = uint64_t(s.f.sharedColour);
 }
 
 // lightCaps: per cap slot (one per sphere and plane, bindings.glsl's
@@ -85,7 +121,7 @@ uint gFrCaps;
 // The pixel's first element of the scratch array at `offset` (bytes per
 // pixel before it), of elements of `size` bytes.
 uint64_t frontierArray(uint offset, uint size) {
-  return gFrBase + uint64_t(offset) * uint64_t(gFrPixels) + uint64_t(gFrSlot) * uint64_t(size);
+  return gFrBase + uint64_t(offset * uint(HT_FRONTIER_LANES) + gFrSlot * size);
 }
 #if HT_FP64
 #define kFrontierRealBytes 8u
@@ -277,10 +313,12 @@ hvec3 frontierAdd3(hvec3 a, hvec3 b) { return hvec3(addF(a.x, b.x), addF(a.y, b.
 
 // The refinement's candidates: a node, its mass, and in `visibility` above
 // its class: bit 3 split, bits 4-6 its children's count, bits 8- the first.
-FrontierNodes gFrCand;
-FrontierReals gFrCandMass, gFrHeapKey;
-FrontierVec3s gFrCandKappa;
-FrontierUints gFrHeapIndex;
+uint gFrOffCand, gFrOffCandMass, gFrOffCandKappa, gFrOffHeapKey, gFrOffHeapIndex;
+#define gFrCand frontierNodes(gFrOffCand)
+#define gFrCandMass frontierReals(gFrOffCandMass)
+#define gFrCandKappa frontierVec3s(gFrOffCandKappa)
+#define gFrHeapKey frontierReals(gFrOffHeapKey)
+#define gFrHeapIndex frontierUints(gFrOffHeapIndex)
 uint gFrCandCount, gFrHeapSize;
 float gFrLobeFloor;      // frontierLobeFloor of the point's material
 uint gFrProductLevel;    // Frontier's productLevel_: frontierProductLevel, or the option's for a shared table
@@ -400,16 +438,7 @@ void frontierFinishTable(uint count, uint n) {
 }
 
 // The pixel's own table.
-void frontierUseOwn() {
-  gFrShared = false;
-  gFrStride = gFrPixels;
-  gFrHeader = frontierUints(gFs.offHeader);
-  gFrNodes = frontierNodes(gFs.offNodes);
-  gFrOrder = frontierUints(gFs.offOrder);
-  gFrMass = frontierReals(gFs.offMass);
-  gFrCum = frontierReals(gFs.offCum);
-  gFrKappa = frontierVec3s(gFs.offKappa);
-}
+void frontierUseOwn() { gFrShared = false; }
 
 // lobeResolved (ht_frontier.cpp).
 bool frontierLobeResolved(float r) {
@@ -440,11 +469,11 @@ float frontierLobeFloor() {
 void frontierRefine(uint n) {
   frontierUseOwn();
   gFrLobeFloor = frontierLobeFloor();
-  gFrCand = frontierNodes(gFs.offCandidates);
-  gFrCandMass = frontierReals(gFs.offCandidateMass);
-  gFrCandKappa = frontierVec3s(gFs.offCandidateKappa);
-  gFrHeapKey = frontierReals(gFs.offHeapKey);
-  gFrHeapIndex = frontierUints(gFs.offHeapIndex);
+  gFrOffCand = gFs.offCandidates;
+  gFrOffCandMass = gFs.offCandidateMass;
+  gFrOffCandKappa = gFs.offCandidateKappa;
+  gFrOffHeapKey = gFs.offHeapKey;
+  gFrOffHeapIndex = gFs.offHeapIndex;
   gFrCandCount = 0u;
   gFrHeapSize = 0u;
   for (uint f = 0u; f < 12u; ++f) frontierPush(0u, f, 2u, kFrontierNone);
@@ -502,16 +531,10 @@ void frontierRefine(uint n) {
 // ---------------------------------------------------------------- shared table
 
 void frontierUseShared(uint t) {
-  FrontierSceneRef s = scene.frontier;
-  gFrStride = 1u;
-  gFrHeader = FrontierUints(uint64_t(s.f.sharedHeaders) + uint64_t(t) * uint64_t(4 * (HT_FRONTIER_SEGMENTS + 20)));
-  uint nodeBase = tableWord(kFrontierNodeBase), cumBase = tableWord(kFrontierCumBase);
-  gFrNodes = FrontierNodes(uint64_t(s.f.sharedNodes) + uint64_t(nodeBase) * 24ul);
-  gFrOrder = FrontierUints(uint64_t(s.f.sharedOrder) + uint64_t(nodeBase) * 4ul);
-  gFrMass = FrontierReals(uint64_t(s.f.sharedMass) + uint64_t(nodeBase) * uint64_t(kFrontierRealBytes));
-  gFrCum = FrontierReals(uint64_t(s.f.sharedCum) + uint64_t(cumBase) * uint64_t(kFrontierRealBytes));
-  gFrColour = FrontierColourNodes(uint64_t(s.f.sharedColour) + uint64_t(nodeBase) * 28ul);
   gFrShared = true;
+  gFrTable = t;
+  gFrNodeBase = tableWord(kFrontierNodeBase);
+  gFrCumBase = tableWord(kFrontierCumBase);
 }
 
 // The shared table of a flat Lambert point's normal, or kFrontierNone.
@@ -855,10 +878,6 @@ void frontierBind(uint slot) {
   gFrBase = pc.frontierScratch + uint64_t(block) * uint64_t(HT_FRONTIER_LANES * gFs.pixelBytes);
   gFrPixels = HT_FRONTIER_LANES;
   gFrSlot = x % HT_FRONTIER_LANES;
-  gFrPointMass = frontierReals(gFs.offPointMass);
-  gFrPointCum = frontierReals(gFs.offPointCum);
-  gFrPointClass = frontierUints(gFs.offPointClass);
-  gFrSegCum = frontierReals(gFs.offSegCum);
 }
 
 // The first batch: the point's table and everything the batches' directions

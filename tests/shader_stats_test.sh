@@ -3,7 +3,7 @@
 # part): the pipelines compile for a GPU compiler, and their registers stay
 # where docs/ht.md ("On a real GPU") records them: `mis` within 128 VGPRs
 # (eight waves per SIMD), `ht-frontier` with spheres.json's six caps
-# without spilling to scratch.
+# within 200 and without spilling to scratch.
 # Usage: shader_stats_test.sh SHADER_STATS SHADER_DIR
 set -uo pipefail
 bin=$1
@@ -37,10 +37,13 @@ fi
 if check ht-frontier frontier.fp32.spv 14 6; then
   [ "$(stat "$out" 'Spilled VGPRs')" -eq 0 ] && [ "$(stat "$out" 'Scratch size')" -eq 0 ] ||
     { echo "FAIL: ht-frontier spills with six caps"; failures=$((failures + 1)); }
+  [ "$(stat "$out" VGPRs)" -le 200 ] || { echo "FAIL: ht-frontier needs more than 200 VGPRs"; failures=$((failures + 1)); }
 fi
-# Sixteen caps (the most a pipeline holds) spill: the statistics follow the specialization.
-if check ht-frontier-16-caps frontier.fp32.spv 14 16; then
-  [ "$(stat "$out" 'Spilled VGPRs')" -gt 0 ] || { echo "FAIL: ht-frontier does not spill with sixteen caps"; failures=$((failures + 1)); }
+six=$(stat "$out" VGPRs)
+# The statistics follow the specialization: sixteen caps (the most a
+# pipeline holds) take more registers than six.
+if [ -n "$six" ] && check ht-frontier-16-caps frontier.fp32.spv 14 16; then
+  [ "$(stat "$out" VGPRs)" -gt "$six" ] || { echo "FAIL: sixteen caps take no more registers than six"; failures=$((failures + 1)); }
 fi
 # A file that is not SPIR-V: a one-line error and a non-zero exit.
 printf 'not spir-v' >"${TMPDIR:-/tmp}/shader_stats_bad.spv"
