@@ -17,7 +17,7 @@ export VK_DRIVER_FILES=$icd VK_ICD_FILENAMES=$icd RADV_FORCE_FAMILY=navi21
 failures=0
 
 # stat JSON NAME: the value of one statistic.
-stat() { grep -o "\"$2\": [0-9]*" <<<"$1" | head -1 | grep -o '[0-9]*$'; }
+stat() { grep -o "\"$2\": *[0-9]*" <<<"$1" | head -1 | grep -o '[0-9]*$'; }
 
 # check LABEL SPV METHOD CAPS: prints the pipeline's statistics, sets $out.
 check() {

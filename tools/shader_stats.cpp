@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -25,13 +26,13 @@ VkDescriptorType descriptorType(ht::vk::BindingKind kind) {
   }
 }
 
-std::string statValue(const VkPipelineExecutableStatisticKHR& s) {
+nlohmann::json statValue(const VkPipelineExecutableStatisticKHR& s) {
   switch (s.format) {
-    case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_BOOL32_KHR: return s.value.b32 ? "true" : "false";
-    case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_INT64_KHR: return std::to_string(s.value.i64);
-    case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_UINT64_KHR: return std::to_string(s.value.u64);
-    case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_FLOAT64_KHR: return fmt::format("{:g}", s.value.f64);
-    default: return "?";
+    case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_BOOL32_KHR: return bool(s.value.b32);
+    case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_INT64_KHR: return s.value.i64;
+    case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_UINT64_KHR: return s.value.u64;
+    case VK_PIPELINE_EXECUTABLE_STATISTIC_FORMAT_FLOAT64_KHR: return s.value.f64;
+    default: return nullptr;
   }
 }
 
@@ -119,7 +120,11 @@ int run(const std::string& spirvPath, uint32_t method, uint32_t capSlots, bool t
   VkShaderModule module = VK_NULL_HANDLE;
   check(vkCreateShaderModule(device, &moduleInfo, nullptr, &module), "vkCreateShaderModule");
 
-  const uint32_t specialization[] = {method, texels ? 1u : 0u, capSlots, brdfTable ? 1u : 0u};
+  uint32_t specialization[4];
+  specialization[HT_SPEC_METHOD] = method;
+  specialization[HT_SPEC_TEXELS] = texels ? 1u : 0u;
+  specialization[HT_SPEC_CAP_SLOTS] = capSlots;
+  specialization[HT_SPEC_BRDF_TABLE] = brdfTable ? 1u : 0u;
   VkSpecializationMapEntry entries[4];
   for (uint32_t i = 0; i < 4; ++i) entries[i] = {i, 4 * i, 4};
   VkSpecializationInfo specInfo{4, entries, sizeof(specialization), specialization};
@@ -142,8 +147,8 @@ int run(const std::string& spirvPath, uint32_t method, uint32_t capSlots, bool t
   std::vector<VkPipelineExecutablePropertiesKHR> execProps(executables,
                                                            {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_PROPERTIES_KHR});
   check(vkGetPipelineExecutablePropertiesKHR(device, &info, &executables, execProps.data()), "executable properties");
-  std::printf("{\"device\": \"%s\", \"shader\": \"%s\", \"method\": %u, \"executables\": [", props.deviceName,
-              spirvPath.c_str(), method);
+  nlohmann::json out = {{"device", props.deviceName}, {"shader", spirvPath}, {"method", method},
+                        {"executables", nlohmann::json::array()}};
   for (uint32_t e = 0; e < executables; ++e) {
     VkPipelineExecutableInfoKHR exec{VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_INFO_KHR};
     exec.pipeline = pipeline;
@@ -152,11 +157,11 @@ int run(const std::string& spirvPath, uint32_t method, uint32_t capSlots, bool t
     check(vkGetPipelineExecutableStatisticsKHR(device, &exec, &n, nullptr), "executable statistics");
     std::vector<VkPipelineExecutableStatisticKHR> stats(n, {VK_STRUCTURE_TYPE_PIPELINE_EXECUTABLE_STATISTIC_KHR});
     check(vkGetPipelineExecutableStatisticsKHR(device, &exec, &n, stats.data()), "executable statistics");
-    std::printf("%s{\"name\": \"%s\", \"subgroup\": %u", e ? ", " : "", execProps[e].name, execProps[e].subgroupSize);
-    for (const auto& s : stats) std::printf(", \"%s\": %s", s.name, statValue(s).c_str());
-    std::printf("}");
+    nlohmann::json j = {{"name", execProps[e].name}, {"subgroup", execProps[e].subgroupSize}};
+    for (const auto& st : stats) j[st.name] = statValue(st);
+    out["executables"].push_back(j);
   }
-  std::printf("]}\n");
+  std::printf("%s\n", out.dump().c_str());
   vkDestroyPipeline(device, pipeline, nullptr);
   vkDestroyShaderModule(device, module, nullptr);
   vkDestroyPipelineLayout(device, layout, nullptr);
