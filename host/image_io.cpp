@@ -30,8 +30,6 @@
 
 namespace ht {
 
-namespace {
-
 void checkImageDimensions(const std::string& path, long long width, long long height) {
   if (width <= 0 || height <= 0)
     throw Error(path + ": empty image (" + std::to_string(width) + "x" + std::to_string(height) + ")");
@@ -39,6 +37,8 @@ void checkImageDimensions(const std::string& path, long long width, long long he
     throw Error(path + ": image too large (" + std::to_string(width) + "x" + std::to_string(height) +
                 ", limit " + std::to_string(kMaxImageDimension) + " per side and 2^28 pixels)");
 }
+
+namespace {
 
 uint8_t encodeSrgb8(float linear) {
   // !(x > 0) also catches NaN, which would otherwise survive the clamp.

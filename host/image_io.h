@@ -1,4 +1,4 @@
-// HDR and preview image files: OpenEXR in, OpenEXR and PNG out.
+// HDR and preview image files: OpenEXR and Radiance .hdr in, OpenEXR and PNG out.
 #pragma once
 
 #include <cstddef>
@@ -25,6 +25,21 @@ struct ImageRGB {
 // Largest width or height accepted from a file; bigger images are refused
 // before anything is allocated.
 constexpr int kMaxImageDimension = 32768;
+// Throws ht::Error naming `name` unless width x height is a size the readers
+// accept: both positive, at most kMaxImageDimension, at most 2^28 pixels.
+void checkImageDimensions(const std::string& name, long long width, long long height);
+
+// Either format, told apart by the name (.hdr, .pic, .rgbe) or the Radiance
+// "#?" signature; OpenEXR otherwise.
+ImageRGB readImage(const std::string& path);
+// The size from the checked header alone; false if the file cannot be read.
+bool readImageSize(const std::string& path, int& width, int& height);
+
+// Radiance RGBE: flat or run-length scanlines, -Y H +X W orientation only
+// (others are refused), FORMAT=32-bit_rle_rgbe, values divided by the
+// header's EXPOSURE= factors. Throws ht::Error with a one-line message.
+ImageRGB readHdr(const std::string& path);
+ImageRGB readHdrFromMemory(const void* data, size_t size, const std::string& name);
 
 // Reads scanline or tiled EXR, half or float, RGB or RGBA (Y only is read as
 // grey). Throws ht::Error with a one-line message on any problem.

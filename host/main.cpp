@@ -150,7 +150,7 @@ MemoryInputs memoryInputs(const RenderOptions& o, const Scene& scene, Method met
   mem.envOrder = std::countr_zero(unsigned(scene.environmentDesc.nside));
   fs::path file = scene.environmentDesc.file;
   if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
-  readExrSize(file.string(), mem.inputWidth, mem.inputHeight);
+  readImageSize(file.string(), mem.inputWidth, mem.inputHeight);
   mem.method = method;
   mem.options.oracleOrder = o.oracleOrder;
   mem.options.wisOrder = o.wisOrder;
@@ -413,7 +413,7 @@ int runAverage(const std::vector<std::string>& averageInputs, const std::string&
   checkOutputPaths({{"--out", averageOut}});
   ImageRGB sum;
   for (const std::string& path : averageInputs) {
-    ImageRGB img = readExr(path);
+    ImageRGB img = readImage(path);
     if (sum.pixels.empty()) {
       sum = img;
       continue;
@@ -431,7 +431,7 @@ int runAverage(const std::vector<std::string>& averageInputs, const std::string&
 int runExport(const std::string& exportIn, const std::string& exportOut) {
   checkOutputPaths({{"--out", exportOut}});
   OutputFile out(exportOut);
-  ImageRGB img = readExr(exportIn);
+  ImageRGB img = readImage(exportIn);
   std::string pfm = fmt::format("PF\n{} {}\n-1.0\n", img.width, img.height);
   const size_t header = pfm.size(), row = sizeof(glm::vec3) * size_t(img.width);
   pfm.resize(header + row * size_t(img.height));
@@ -443,7 +443,7 @@ int runExport(const std::string& exportIn, const std::string& exportOut) {
 }
 
 int runCompare(const std::string& refPath, const std::string& testPath) {
-  ImageRGB ref = readExr(refPath), test = readExr(testPath);
+  ImageRGB ref = readImage(refPath), test = readImage(testPath);
   if (ref.width != test.width || ref.height != test.height)
     throw Error(fmt::format("{}: size {}x{} differs from the reference's {}x{}", testPath, test.width,
                             test.height, ref.width, ref.height));
@@ -471,19 +471,19 @@ int main(int argc, char** argv) {
 
   std::vector<std::string> averageInputs;
   std::string averageOut;
-  CLI::App* average = app.add_subcommand("average", "mean of several EXR images of the same size");
-  average->add_option("inputs", averageInputs, "EXR files")->required();
+  CLI::App* average = app.add_subcommand("average", "mean of several EXR (or .hdr) images of the same size");
+  average->add_option("inputs", averageInputs, "EXR or .hdr files")->required();
   average->add_option("--out", averageOut, "output EXR")->required();
 
   std::string exportIn, exportOut;
-  CLI::App* exportCmd = app.add_subcommand("export", "write an EXR as PFM (little-endian float RGB), for scripts");
-  exportCmd->add_option("input", exportIn, "EXR file")->required();
+  CLI::App* exportCmd = app.add_subcommand("export", "write an EXR (or .hdr) as PFM (little-endian float RGB), for scripts");
+  exportCmd->add_option("input", exportIn, "EXR or .hdr file")->required();
   exportCmd->add_option("--out", exportOut, "PFM file")->required();
 
   std::string refPath, testPath;
   CLI::App* compare = app.add_subcommand("compare", "error of an image against a reference, as JSON");
-  compare->add_option("--ref", refPath, "reference EXR")->required();
-  compare->add_option("--test", testPath, "EXR to measure")->required();
+  compare->add_option("--ref", refPath, "reference EXR or .hdr")->required();
+  compare->add_option("--test", testPath, "EXR or .hdr to measure")->required();
 
   try {
     app.parse(argc, argv);

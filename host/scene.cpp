@@ -277,7 +277,7 @@ void loadEnvironmentFile(Scene& scene) {
   if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
   scene.environmentDesc.file = file.lexically_normal().string();
   const auto t0 = std::chrono::steady_clock::now();
-  ImageRGB image = readExr(scene.environmentDesc.file);
+  ImageRGB image = readImage(scene.environmentDesc.file);
   scene.environmentStats =
       sanitizeEnvironmentImage(image, scene.environmentDesc.file, scene.environmentDesc.repairNonFinite);
   scene.environmentStats.loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # End-to-end checks of the htrender command line: outputs, stats and errors.
-# Usage: cli_test.sh HTRENDER DATA_DIR [WRITE_TEST_EXR]
-# (write_test_exr, built with the tests, is looked for next to htrender by default)
+# Usage: cli_test.sh HTRENDER DATA_DIR [WRITE_TEST_EXR [WRITE_TEST_HDR]]
+# (write_test_exr and write_test_hdr, built with the tests, are looked for next to htrender by default)
 set -uo pipefail
 bin=$1
 data=$(cd "$2" && pwd)
 wexr=${3:-$(dirname "$bin")/write_test_exr}
+whdr=${4:-$(dirname "$bin")/write_test_hdr}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 failures=0
@@ -97,11 +98,14 @@ expect_error "fake.exr: not an OpenEXR file" render --scene "$tmp/fake-env.json"
 
 # ---------------------------------------------------------------------------
 # Bad data through the whole command line.
-if [ ! -x "$wexr" ]; then
-  echo "FAIL: $wexr is missing (it is built with the tests)"
-  exit 1
-fi
+for helper in "$wexr" "$whdr"; do
+  if [ ! -x "$helper" ]; then
+    echo "FAIL: $helper is missing (it is built with the tests)"
+    exit 1
+  fi
+done
 wexr() { "$wexr" "$@" || fail "write_test_exr $*"; }
+whdr() { "$whdr" "$@" || fail "write_test_hdr $*"; }
 
 # write_scene <env file> <scene.json> [more environment keys]: a small valid
 # scene (16x8 pixels, Nside 4) lit by the given map.
@@ -154,6 +158,69 @@ for cut in 6 300 1000 $((size / 2)) $((size - 1)); do
   expect_render_error "$tmp/cut$cut.exr: " "$tmp/e-cut$cut.json"
   grep -q "truncated" "$tmp/err" && ok || fail "cut at $cut bytes: not called truncated: $(cat "$tmp/err")"
 done
+# Radiance .hdr maps. The same map as EXR and as .hdr, run-length coded or
+# flat: `uniform` draws the same directions whatever the map, and its
+# estimate is linear in the texels with non-negative weights, so each pixel
+# differs by at most the RGBE rounding, a 256th of the texels' brightest
+# channel, bounded here by the sum of the EXR render's channels / 256.
+whdr --in "$data/env/sunrise.exr" --out "$tmp/sunrise.hdr"
+whdr --in "$data/env/sunrise.exr" --out "$tmp/sunrise-flat.hdr" --flat
+[ "$(stat -c %s "$tmp/sunrise.hdr")" -lt "$(stat -c %s "$tmp/sunrise-flat.hdr")" ] && ok ||
+  fail "the run-length .hdr is not smaller than the flat one"
+for map in "$data/env/sunrise.exr" "$tmp/sunrise.hdr" "$tmp/sunrise-flat.hdr"; do
+  name=$(basename "$map")
+  sed "s|../env/sunrise.exr|$map|" "$data/scenes/spheres.json" >"$tmp/hdr-$name.json"
+  "$bin" render --scene "$tmp/hdr-$name.json" --method uniform --device cpu --spp 4 --width 64 --height 32 -q \
+    --out "$tmp/hdr-$name-out.exr" --stats "$tmp/hdr-$name-out.json" || fail "render with $name"
+  "$bin" export "$tmp/hdr-$name-out.exr" --out "$tmp/hdr-$name-out.pfm" || fail "export $name"
+done
+grep -qF "\"file\": \"$tmp/sunrise.hdr\"" "$tmp/hdr-sunrise.hdr-out.json" && ok || fail ".hdr not in the stats"
+"$bin" compare --ref "$tmp/hdr-sunrise.hdr-out.exr" --test "$tmp/hdr-sunrise-flat.hdr-out.exr" >"$tmp/cmp.json" &&
+  python3 -c 'import json,sys; e=json.load(open(sys.argv[1])); assert e["rmse"] == 0.0, e' "$tmp/cmp.json" &&
+  ok || fail "run-length and flat .hdr render differently: $(cat "$tmp/cmp.json")"
+/usr/bin/python3 - "$tmp/hdr-sunrise.exr-out.pfm" "$tmp/hdr-sunrise.hdr-out.pfm" <<'PY' && ok || fail ".hdr and EXR renders differ beyond the RGBE rounding"
+import sys
+import numpy as np
+def pfm(path):
+    data = open(path, "rb").read()
+    head = data.split(b"\n", 3)
+    w, h = map(int, head[1].split())
+    return np.frombuffer(head[3], dtype="<f4").reshape(h, w, 3).astype(np.float64)
+exr, hdr = pfm(sys.argv[1]), pfm(sys.argv[2])
+bound = exr.sum(axis=2, keepdims=True) / 256 + 1e-5 * exr.max()
+assert exr.mean() > 0.01, exr.mean()
+assert np.all(np.abs(hdr - exr) <= bound), np.abs(hdr - exr).max()
+# The means agree far closer than the per-pixel bound: rounding to nearest.
+assert abs(hdr.mean() - exr.mean()) <= exr.mean() / 256, (hdr.mean(), exr.mean())
+PY
+# Bad .hdr files: one line naming the file and what is wrong.
+hdr_error() {
+  local want=$1 file=$2
+  write_scene "$file" "$tmp/e-hdr.json"
+  expect_render_error "$file: $want" "$tmp/e-hdr.json"
+}
+: >"$tmp/empty.hdr"
+hdr_error "empty file" "$tmp/empty.hdr"
+header_end=$(grep -abo '+X 1024' "$tmp/sunrise.hdr" | head -1 | cut -d: -f1)
+head -c $((header_end + 8)) "$tmp/sunrise.hdr" >"$tmp/cut-header.hdr"
+hdr_error "truncated Radiance .hdr file" "$tmp/cut-header.hdr"
+head -c $(($(stat -c %s "$tmp/sunrise.hdr") / 2)) "$tmp/sunrise.hdr" >"$tmp/cut-half.hdr"
+hdr_error "truncated Radiance .hdr file (the scanlines end early, in row" "$tmp/cut-half.hdr"
+printf '#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n-Y 2 +X 8\n' >"$tmp/no-blank.hdr"
+hdr_error "truncated or corrupt Radiance header (no blank line ends it" "$tmp/no-blank.hdr"
+printf 'RADIANCE\n\n-Y 2 +X 8\n' >"$tmp/no-sig.hdr"
+hdr_error "not a Radiance .hdr file (no #? signature)" "$tmp/no-sig.hdr"
+printf '#?RADIANCE\n\n-Y 2 +X 0\n' >"$tmp/w0.hdr"
+hdr_error "empty image (0x2)" "$tmp/w0.hdr"
+printf '#?RADIANCE\n\n-Y 32768 +X 32768\n' >"$tmp/huge.hdr"
+hdr_error "image too large (32768x32768" "$tmp/huge.hdr"
+printf '#?RADIANCE\n\n-Y 16000 +X 16000\n\002\002' >"$tmp/big.hdr"
+hdr_error "truncated Radiance .hdr file (2 bytes of scanlines cannot hold 16000x16000 pixels)" "$tmp/big.hdr"
+whdr --in "$data/env/synthetic-constant.exr" --out "$tmp/flipped.hdr" --resolution "+Y 32 +X 64"
+hdr_error "unsupported Radiance orientation \"+Y 32 +X 64\"" "$tmp/flipped.hdr"
+whdr --in "$data/env/synthetic-constant.exr" --out "$tmp/xyze.hdr" --header FORMAT=32-bit_rle_xyze
+hdr_error "unsupported Radiance pixel format" "$tmp/xyze.hdr"
+
 wexr --out "$tmp/depth.exr" --channels Z
 write_scene "$tmp/depth.exr" "$tmp/e-depth.json"
 expect_render_error "$tmp/depth.exr: no colour channels" "$tmp/e-depth.json"

@@ -8,7 +8,7 @@ packages=(
   libvulkan-dev mesa-vulkan-drivers glslang-tools libvulkan-volk-dev
   vulkan-validationlayers vulkan-tools spirv-tools
   libglm-dev libfmt-dev libopenexr-dev nlohmann-json3-dev libcli11-dev libtbb-dev
-  libgtest-dev libpng-dev libchealpix-dev
+  libgtest-dev libpng-dev libchealpix-dev libstb-dev
   clang-14 libclang-rt-14-dev
   python3-matplotlib python3-numpy
 )
