@@ -201,6 +201,14 @@ int defaultGpuDevice(const std::vector<GpuDeviceInfo>& devices) {
 
 bool gpuSupportsMethod(Method m) { return methodInfo(m).gpu && familyShader(methodInfo(m).family); }
 
+std::string gpuSceneLimit(Method method, size_t occluders) {
+  const MethodInfo& info = methodInfo(method);
+  if ((info.family == Family::Ht || method == Method::HtFrontier) && info.visibility && occluders > HT_MAX_CAPS)
+    return fmt::format("method {} on the GPU handles at most {} spheres and planes (the scene has {}); "
+                       "use --device cpu", methodName(method), HT_MAX_CAPS, occluders);
+  return {};
+}
+
 std::string shaderDirNextToExecutable() {
   std::error_code ec;
   std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
@@ -463,9 +471,7 @@ void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables
   const MethodInfo& info = methodInfo(s.method);
   bool changed = false;
   if (info.family == Family::Ht || s.method == Method::HtFrontier) {
-    if (info.visibility && occluders > HT_MAX_CAPS)
-      throw Error(fmt::format("method {} on the GPU handles at most {} spheres and planes (the scene has {}); "
-                              "use --device cpu", methodName(s.method), HT_MAX_CAPS, occluders));
+    if (const std::string limit = gpuSceneLimit(s.method, occluders); !limit.empty()) throw Error(limit);
     if (geometry != t.htGeometry) {
       const HtGeometry& g = t.geometry();
       if (g.order != envOrder) throw Error("internal: HT geometry of another order than the map's");

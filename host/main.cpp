@@ -30,7 +30,7 @@ namespace {
 
 struct RenderOptions {
   std::string scene = "data/scenes/spheres.json";
-  std::string method = "mis";
+  std::string method = "ht-frontier";
   std::string device = "auto";
   int gpuIndex = -1;
   std::string gpuPrecision = "auto";
@@ -74,9 +74,9 @@ std::string resolveScene(const std::string& path) {
 
 // --device gpu: the Vulkan path, or a one-line error. auto: the Vulkan path
 // on the best device if it is a GPU; with no loader, no usable device, only
-// a CPU Vulkan device (lavapipe) or a method the GPU path lacks, the CPU
+// a CPU Vulkan device (lavapipe), a method the GPU path lacks or a scene it cannot take, the CPU
 // reference, and `why` says so.
-std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, Method method, std::string& why) {
+std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, const Scene& scene, Method method, std::string& why) {
   if (!gpuSupportsMethod(method)) {
     if (o.device == "gpu") {
       std::string gpuMethods;
@@ -87,6 +87,11 @@ std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, Method method, std:
                               methodName(method), gpuMethods));
     }
     why = fmt::format("method {} has no GPU version", methodName(method));
+    return nullptr;
+  }
+  if (const std::string limit = gpuSceneLimit(method, scene.spheres.size() + scene.planes.size()); !limit.empty()) {
+    if (o.device == "gpu") throw Error(limit);
+    why = limit.substr(0, limit.rfind(';'));
     return nullptr;
   }
   try {
@@ -287,7 +292,7 @@ int runRender(const RenderOptions& o) {
 
   t0 = std::chrono::steady_clock::now();
   std::string cpuWhy;
-  std::unique_ptr<GpuRenderer> gpu = o.device == "cpu" ? nullptr : openGpu(o, *method, cpuWhy);
+  std::unique_ptr<GpuRenderer> gpu = o.device == "cpu" ? nullptr : openGpu(o, scene, *method, cpuWhy);
   double tDevice = secondsSince(t0);
   mem.gpu = gpu != nullptr;
   const MemoryEstimate memory = estimateRenderMemory(mem);
@@ -352,7 +357,7 @@ void addRenderOptions(CLI::App& r, RenderOptions& o) {
       ->check(CLI::IsMember({"cpu", "gpu", "auto"}))
       ->capture_default_str();
   r.add_option("--gpu-index", o.gpuIndex, "Vulkan device for --device gpu/auto (see `htrender info`)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0, 255));
   r.add_option("--gpu-precision", o.gpuPrecision,
                "GPU shader variant: fp32 (the production path), fp64 (bit for bit the CPU reference's samples; "
                "needs shaderFloat64) or auto (fp32; fp64 for wis and tsis, which need it)")

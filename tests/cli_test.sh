@@ -472,7 +472,7 @@ PY
 # Memory: the estimate is checked against --max-memory (default: 80% of the
 # available memory) before anything large is allocated.
 edit_scene '"nside": 4' '"nside": 8192' "$tmp/s-8192.json"
-expect_render_error "not enough memory: this render needs about" "$tmp/s-8192.json" --max-memory 16G
+expect_render_error "not enough memory: this render needs about" "$tmp/s-8192.json" --method mis --max-memory 16G
 grep -qE "needs about 2[0-9]\.[0-9] GiB .*more than the limit of 16\.0 GiB \(--max-memory\)" "$tmp/err" && ok ||
   fail "nside 8192: need and limit not named: $(cat "$tmp/err")"
 expect_render_error "more than the limit of 512.0 MiB" "$tmp/s-8192.json" --method ht --max-memory 512M
@@ -503,6 +503,7 @@ expect_error "--seed = abc" render --scene "$furnace" --seed abc --out "$tmp/x.e
 expect_error "--seed = -1" render --scene "$furnace" --seed -1 --out "$tmp/x.exr"
 expect_error "--exposure = bright" render --scene "$furnace" --exposure bright --out "$tmp/x.exr"
 expect_error "--device" render --scene "$furnace" --device tpu --out "$tmp/x.exr"
+expect_error "--gpu-index: Value -1 not in range 0 to 255" render --scene "$furnace" --gpu-index -1 --out "$tmp/x.exr"
 expect_error "--ref" compare --test "$tmp/zero-16x8.exr"
 expect_error "cannot open $tmp/none.exr" compare --ref "$tmp/none.exr" --test "$tmp/zero-16x8.exr"
 expect_error "differs from the reference" compare --ref "$tmp/black.exr" --test "$tmp/zero-16x8.exr"
