@@ -151,7 +151,7 @@ TEST(Estimators, OracleUnbiased) {
 // less than half that of mis and of ht-vis at equal spp, for a lobe narrower
 // than the environment's pixels and a point in a sphere's shadow too. (All
 // of them sample by luminance, so colour noise is left out.)
-TEST(Estimators, OracleIsTheVarianceFloor) {
+TEST(EstimatorsSlow, OracleIsTheVarianceFloor) {
   std::vector<ShadingSetup> setups;
   setups.push_back(makeSetup("diffuse-sunrise", sunriseEnvironment(), lambert(0.8f), {0.3f, 1.0f, 0.2f}));
   setups.push_back(makeSetup("ggx0.2-sunrise", sunriseEnvironment(), ggx(0.2f, glm::vec3(0.9f, 0.7f, 0.4f)),

@@ -56,7 +56,7 @@ TEST(Stress, EveryMethodGivesFiniteNonNegativePixels) {
 }
 
 // Two shading points per scene, from pixels that hit something.
-TEST(Stress, EveryUnbiasedMethodAgreesWithBruteForce) {
+TEST(StressSlow, EveryUnbiasedMethodAgreesWithBruteForce) {
   struct Point {
     std::string name;
     ShadingSetup setup;
