@@ -126,6 +126,33 @@ def charts(scene, rows, outdir):
     return path.name
 
 
+def headline_chart(scene, rows, outdir):
+    """Error against time of the product methods and `mis`, every device: the README's chart."""
+    methods = by_key([r for r in rows if r["method"] in PRODUCT_METHODS + ("mis",)])
+    if not methods:
+        return None
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    colors = {"ht-frontier": "tab:red", "mis": "tab:blue", "ht-vis": "tab:gray"}
+    for name, rs in sorted(methods.items()):
+        device = rs[0].get("device", "cpu")
+        label = f"{rs[0]['method']} ({'lavapipe' if device == 'gpu' else device})"
+        ax.loglog([r["seconds"] for r in rs], [r["relmse"] for r in rs], "s--" if device != "cpu" else "o-",
+                  label=label, ms=4, color=colors.get(rs[0]["method"], "black"))
+        for r in rs:
+            ax.annotate(str(r["spp"]), (r["seconds"], r["relmse"]), fontsize=6, xytext=(3, 3),
+                        textcoords="offset points")
+    ax.set_xlabel("render time (s, wall; points labelled with spp)")
+    ax.set_ylabel("relMSE")
+    ax.set_title(f"{scene}: error against time (lower left is better)", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    path = outdir / f"{scene}-headline.png"
+    save_figure(fig, path, dpi=DPI)
+    plt.close(fig)
+    return path.name
+
+
 def image_grid(scene, chosen, ref_img, images, outdir, title, crop=True):
     """chosen: [(name, row)]; top: tone-mapped crop, bottom: relative error |L - Lref| / (Lref + 0.01), 0..1."""
     chosen = [(n, r) for n, r in chosen if r is not None and r["file"] in images]
@@ -374,6 +401,9 @@ def scene_section(scene, info, srows, bench_dir, htrender, tmp, outdir, skipped)
     f = findings(srows)
     if f:
         md += [f"**{f}**", ""]
+    headline = headline_chart(scene, srows, outdir)
+    if headline:
+        md += [f"![error against time of the product methods and mis]({headline})", ""]
     md += [f"![charts]({charts(scene, srows, outdir)})", ""]
     ref_img = read_exr(htrender, bench_dir / info["file"], tmp)
     images = {r["file"]: read_exr(htrender, bench_dir / r["file"], tmp) for r in srows
