@@ -303,7 +303,8 @@ ImageRGB readHdr(const std::string& path) {
 
 ImageRGB readImage(const std::string& path) { return looksLikeHdr(path) ? readHdr(path) : readExr(path); }
 
-bool readImageSize(const std::string& path, int& width, int& height) {
+bool readImageSize(const std::string& path, int& width, int& height, uint64_t* decodeBytes) {
+  if (decodeBytes) *decodeBytes = 0;
   if (!looksLikeHdr(path)) return readExrSize(path, width, height);
   try {
     const std::vector<uint8_t> bytes = readBytes(path, kMaxHeaderBytes);
@@ -313,6 +314,7 @@ bool readImageSize(const std::string& path, int& width, int& height) {
     const HdrHeader h = parseHeader(bytes.data(), bytes.size(), size, path);
     width = h.width;
     height = h.height;
+    if (decodeBytes) *decodeBytes = size + uint64_t(h.width) * uint64_t(h.height) * sizeof(glm::vec3);
     return true;
   } catch (const std::exception&) {
     return false;

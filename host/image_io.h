@@ -33,7 +33,9 @@ void checkImageDimensions(const std::string& name, long long width, long long he
 // "#?" signature; OpenEXR otherwise.
 ImageRGB readImage(const std::string& path);
 // The size from the checked header alone; false if the file cannot be read.
-bool readImageSize(const std::string& path, int& width, int& height);
+// `decodeBytes`, if given, gets what reading the image holds for a while
+// beyond its pixels (a .hdr file's bytes and the decoder's own copy).
+bool readImageSize(const std::string& path, int& width, int& height, uint64_t* decodeBytes = nullptr);
 
 // Radiance RGBE: flat or run-length scanlines, -Y H +X W orientation only
 // (others are refused), FORMAT=32-bit_rle_rgbe, values divided by the

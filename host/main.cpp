@@ -155,7 +155,7 @@ MemoryInputs memoryInputs(const RenderOptions& o, const Scene& scene, Method met
   mem.envOrder = std::countr_zero(unsigned(scene.environmentDesc.nside));
   fs::path file = scene.environmentDesc.file;
   if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
-  readImageSize(file.string(), mem.inputWidth, mem.inputHeight);
+  readImageSize(file.string(), mem.inputWidth, mem.inputHeight, &mem.inputDecodeBytes);
   mem.method = method;
   mem.options.oracleOrder = o.oracleOrder;
   mem.options.wisOrder = o.wisOrder;

@@ -48,6 +48,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
   };
   const uint64_t base = add("program", kBaseBytes);
   const uint64_t input = add("input map", uint64_t(in.inputWidth) * uint64_t(in.inputHeight) * 12);
+  const uint64_t decode = add("decoding the input map (while read)", in.inputDecodeBytes);
   const uint64_t radiance = add("HEALPix radiance", pixels * 12);
   const uint64_t luminance = add("luminance (while building the trees)", pixels * 4);
   // Each thread resamples a group of rings (energy and index per pixel, 32
@@ -99,7 +100,8 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
     gpu += image * 12;  // the readback of the tiles, gathered
     add("GPU buffers", gpu);
   }
-  e.loadPeak = base + input + radiance + luminance + resample + trees;
+  // The decoder's buffers are freed before the HEALPix map is made.
+  e.loadPeak = base + input + std::max(decode, radiance + luminance + resample + trees);
   e.renderPeak = base + radiance + trees + tables + out + gpu;
   return e;
 }

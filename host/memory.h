@@ -15,6 +15,7 @@ namespace ht {
 struct MemoryInputs {
   int envOrder = 8;                   // Nside = 2^envOrder
   int inputWidth = 0, inputHeight = 0;  // the equirectangular map read from disk
+  uint64_t inputDecodeBytes = 0;        // held while reading it, beyond its pixels
   Method method = Method::Mis;
   MethodOptions options;
   int width = 0, height = 0;  // the image

@@ -175,6 +175,12 @@ for map in "$data/env/sunrise.exr" "$tmp/sunrise.hdr" "$tmp/sunrise-flat.hdr"; d
   "$bin" export "$tmp/hdr-$name-out.exr" --out "$tmp/hdr-$name-out.pfm" || fail "export $name"
 done
 grep -qF "\"file\": \"$tmp/sunrise.hdr\"" "$tmp/hdr-sunrise.hdr-out.json" && ok || fail ".hdr not in the stats"
+# Its memory estimate counts the file and the decoder's copy while it is read.
+python3 - "$tmp/hdr-sunrise.hdr-out.json" "$(stat -c %s "$tmp/sunrise.hdr")" <<'PY' && ok || fail ".hdr decoding not in the memory estimate"
+import json, sys
+parts = json.load(open(sys.argv[1]))["memory"]["parts"]
+assert parts["decoding the input map (while read)"] == int(sys.argv[2]) + 1024 * 512 * 12, parts
+PY
 "$bin" compare --ref "$tmp/hdr-sunrise.hdr-out.exr" --test "$tmp/hdr-sunrise-flat.hdr-out.exr" >"$tmp/cmp.json" &&
   python3 -c 'import json,sys; e=json.load(open(sys.argv[1])); assert e["rmse"] == 0.0, e' "$tmp/cmp.json" &&
   ok || fail "run-length and flat .hdr render differently: $(cat "$tmp/cmp.json")"
