@@ -11,6 +11,7 @@
 #include <tbb/parallel_reduce.h>
 #include <tbb/parallel_for.h>
 
+#include "error.h"
 #include "healpix.h"
 #include "sampling.h"
 

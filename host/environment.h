@@ -16,7 +16,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "image_io.h"
+#include "image.h"
 #include "tree.h"
 
 namespace ht {

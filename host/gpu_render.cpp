@@ -16,6 +16,7 @@
 
 #include "common.h"  // shaders/common.h
 #include "brdf_table.h"
+#include "error.h"
 #include "healpix.h"
 #include "ht.h"
 #include "ht_frontier.h"

@@ -15,6 +15,7 @@
 #include "bsdf.h"
 #include "error.h"
 #include "healpix.h"
+#include "tables.h"
 #include "tree.h"
 
 namespace ht {

@@ -27,7 +27,6 @@
 
 #include "brdf_table.h"
 #include "huge_buffer.h"
-#include "tables.h"
 #include "shading.h"
 #include "rng.h"
 #include "sampler.h"
@@ -35,6 +34,8 @@
 #include "scene.h"
 
 namespace ht {
+
+struct MethodTables;  // tables.h
 
 struct HtOptions {
   bool visibility = false;     // multiply by the inner-sphere visibility factor

@@ -13,6 +13,7 @@
 
 #include "error.h"
 #include "healpix.h"
+#include "tables.h"
 #include "tree.h"
 
 namespace ht {

@@ -7,7 +7,7 @@
 #include <fmt/format.h>
 
 #include "error.h"
-#include "memory.h"
+#include "system_memory.h"
 
 namespace ht {
 

@@ -24,7 +24,7 @@
 #include <png.h>
 #include <tbb/info.h>
 
-#include "memory.h"
+#include "system_memory.h"
 #include "output_file.h"
 #include "sampling.h"
 

@@ -6,21 +6,10 @@
 #include <string>
 #include <vector>
 
-#include <glm/vec3.hpp>
-
 #include "error.h"
+#include "image.h"
 
 namespace ht {
-
-// Linear float RGB, row-major, top row first.
-struct ImageRGB {
-  int width = 0;
-  int height = 0;
-  std::vector<glm::vec3> pixels;
-
-  glm::vec3& at(int x, int y) { return pixels[size_t(y) * width + x]; }
-  const glm::vec3& at(int x, int y) const { return pixels[size_t(y) * width + x]; }
-};
 
 // Largest width or height accepted from a file; bigger images are refused
 // before anything is allocated.

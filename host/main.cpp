@@ -17,10 +17,12 @@
 #include <tbb/info.h>
 
 #include "gpu_render.h"
+#include "image_io.h"
 #include "memory.h"
 #include "output_file.h"
 #include "render.h"
 #include "scene.h"
+#include "system_memory.h"
 #include "wis.h"
 
 namespace fs = std::filesystem;

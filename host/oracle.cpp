@@ -8,6 +8,7 @@
 #include "healpix.h"
 #include "ht.h"
 #include "sampling.h"
+#include "tables.h"
 #include "tree.h"
 
 namespace ht {

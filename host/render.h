@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "image_io.h"
+#include "image.h"
 #include "integrator.h"
 #include "scene.h"
 

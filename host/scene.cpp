@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "healpix.h"
+#include "image_io.h"
 #include "sampling.h"
 
 namespace ht {

@@ -1,8 +1,6 @@
 #include "tables.h"
 
 #include "error.h"
-#include "ht.h"
-#include "ht_frontier.h"
 #include "scene.h"
 
 namespace ht {

@@ -27,6 +27,7 @@
 #include <glm/geometric.hpp>
 
 #include "common.h"
+#include "error.h"
 #include "gpu_render.h"
 #include "healpix.h"
 #include "ht.h"

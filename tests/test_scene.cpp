@@ -2,6 +2,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "error.h"
 #include "scene.h"
 
 using namespace ht;

@@ -11,6 +11,7 @@
 #include <glm/geometric.hpp>
 
 #include "one_line.h"
+#include "error.h"
 #include "scene.h"
 
 namespace {
