@@ -12,9 +12,12 @@
 #include <string>
 #include <vector>
 
+#include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
+#include <gtest/gtest.h>
 
 #include "healpix.h"
+#include "rng.h"
 
 namespace ht::test {
 
@@ -197,6 +200,48 @@ inline std::vector<double> expectedCountsHealpix(int binOrder, int subdiv,
     expected[p] = weight * sum;
   }
   return expected;
+}
+
+// One sampler's test against its own density, in the spirit of Mitsuba 3's
+// ChiSquareTest: a sample function, its density and the domain's bins (the
+// equal-area HEALPix pixels at binOrder, in the frame the sample function
+// returns its directions in).
+struct DensityCase {
+  std::string name;
+  std::function<glm::dvec3(Rng&)> sample;  // one direction per call
+  std::function<double(glm::dvec3)> pdf;   // solid-angle density; unused where `expected` is given
+  int binOrder = 4;
+  int subdiv = 12;       // the midpoint rule per bin for the expected counts
+  int samples = 1'000'000;
+  std::vector<double> expected = {};  // the expected counts, where the density gives them exactly
+};
+
+// Every case: its samples from Rng(seed, stream), binned, against the
+// expected counts by Pearson's test at a Sidak-corrected level (family-wise
+// alpha 0.01 over the cases, or over `family` tests where the cases are
+// run a few at a time); each sample must be a finite direction and the
+// density must integrate to one.
+inline void expectDensitiesMatch(const std::vector<DensityCase>& cases, uint32_t seed, uint32_t stream,
+                                 int family = 0) {
+  const double level = sidakAlpha(0.01, family > 0 ? family : int(cases.size()));
+  for (const DensityCase& c : cases) {
+    const std::vector<double> expected =
+        c.expected.empty() ? expectedCountsHealpix(c.binOrder, c.subdiv, c.pdf, c.samples) : c.expected;
+    ASSERT_EQ(expected.size(), healpix::pixelCount(c.binOrder)) << c.name;
+    std::vector<uint64_t> observed(expected.size(), 0);
+    Rng rng(seed, stream);
+    for (int i = 0; i < c.samples; ++i) {
+      const glm::dvec3 d = c.sample(rng);
+      ASSERT_TRUE(std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z) && glm::length(d) > 0.5)
+          << c.name << ": sample " << i << " is not a direction";
+      ++observed[binIndex(c.binOrder, d)];
+    }
+    double mass = 0.0;
+    for (double e : expected) mass += e;
+    EXPECT_NEAR(mass / c.samples, 1.0, 2e-3) << c.name << ": the density does not integrate to one";
+    const Chi2Result r = chi2Test(observed, expected);
+    EXPECT_GT(r.pValue, level) << c.name << ": " << describe(r, observed, expected);
+  }
 }
 
 }  // namespace ht::test

@@ -17,12 +17,7 @@ using namespace ht::test;
 
 namespace {
 
-struct Case {
-  std::string name;
-  std::function<glm::dvec3(Rng&)> sample;  // in the frame of the bins
-  std::function<double(glm::dvec3)> pdf;
-  int binOrder = 4;
-};
+using Case = DensityCase;
 
 glm::vec3 dirFromAngle(float thetaDeg) {
   float t = thetaDeg * kPi / 180.0f;
@@ -93,23 +88,7 @@ std::vector<Case> cases() {
 
 }  // namespace
 
-TEST(Samplers, ChiSquareAgainstOwnPdf) {
-  const std::vector<Case> all = cases();
-  const double alpha = sidakAlpha(0.01, int(all.size()));
-  const int n = 1'000'000;
-  for (const Case& c : all) {
-    std::vector<double> expected = expectedCountsHealpix(c.binOrder, 12, c.pdf, n);
-    std::vector<uint64_t> observed(expected.size(), 0);
-    Rng rng(7, 0);
-    for (int i = 0; i < n; ++i) ++observed[binIndex(c.binOrder, c.sample(rng))];
-    // The pdf must integrate to one (what falls outside the sphere is lost mass).
-    double mass = 0.0;
-    for (double e : expected) mass += e;
-    EXPECT_NEAR(mass / n, 1.0, 2e-3) << c.name;
-    Chi2Result r = chi2Test(observed, expected);
-    EXPECT_GT(r.pValue, alpha) << c.name << ": " << describe(r, observed, expected);
-  }
-}
+TEST(Samplers, ChiSquareAgainstOwnPdf) { expectDensitiesMatch(cases(), 7, 0); }
 
 // The density a sampler reports with a sample is its pdf at that direction.
 TEST(Samplers, EnvironmentSamplePdfEqualsPdfOfDirection) {
