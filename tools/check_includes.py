@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""The include graph of host/ as modules (foo.h and foo.cpp are one module):
+"""The include graph of host/ as modules (foo.h, foo.cpp and a private
+foo_impl.h are one module):
 fails, naming a cycle, when a module reaches itself through its includes,
 which is what an include from a lower layer to a higher one makes. With
 --layers, prints each module's layer: 0 includes nothing of the project's,
@@ -15,18 +16,23 @@ from pathlib import Path
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)
 
 
+def module_of(path):
+    name = path.with_suffix("").as_posix()
+    return name[: -len("_impl")] if name.endswith("_impl") and path.suffix == ".h" else name
+
+
 def modules(root):
     """module name -> set of module names its files include (within root)."""
     files = sorted(p for p in root.rglob("*") if p.suffix in (".h", ".cpp"))
-    names = {p.relative_to(root).with_suffix("").as_posix() for p in files}
+    names = {module_of(p.relative_to(root)) for p in files}
     graph = {n: set() for n in names}
     for p in files:
-        me = p.relative_to(root).with_suffix("").as_posix()
+        me = module_of(p.relative_to(root))
         for inc in INCLUDE.findall(p.read_text()):
             for base in (p.parent, root):
                 target = (base / inc).resolve()
                 if target.is_file() and target.is_relative_to(root.resolve()):
-                    other = target.relative_to(root.resolve()).with_suffix("").as_posix()
+                    other = module_of(target.relative_to(root.resolve()))
                     if other != me:
                         graph[me].add(other)
                     break
