@@ -263,8 +263,8 @@ void layOutFrontierScratch(uint32_t real, GpuFrontierScene& f) {
 
 }  // namespace
 
-// ht-frontier's GpuFrontierScene for this render: FrontierOptions as
-// estimateDirect sets them, the shared Lambert table of each side of each
+// ht-frontier's GpuFrontierScene for this render: frontierOptionsFor's
+// options, the shared Lambert table of each side of each
 // plane, and the layout of a pixel's scratch.
 void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTables& t) {
   const Scene& hs = *hostScene;
@@ -272,9 +272,7 @@ void GpuRenderer::Impl::uploadFrontier(const RenderSettings& s, const MethodTabl
   const HtGeometry& g = t.geometry();
   const FrontierColours& colours = t.colours();
   const std::vector<uint8_t>& bins = colours.bins;
-  FrontierOptions options;
-  options.refinements = s.options.frontierRefinements;
-  options.colourControl = s.options.frontierColourControl;
+  const FrontierOptions options = frontierOptionsFor(s.options);
   const int n = std::max(s.spp, 1);
   const bool fp64 = usesFloat64(s.method);
   if (frontierColours != t.frontierColours) {

@@ -102,6 +102,13 @@ HtOptions htOptionsFor(Method method, const MethodOptions& methodOptions) {
   return options;
 }
 
+FrontierOptions frontierOptionsFor(const MethodOptions& methodOptions) {
+  FrontierOptions options;
+  options.refinements = methodOptions.frontierRefinements;
+  options.colourControl = methodOptions.frontierColourControl;
+  return options;
+}
+
 MethodTables prepareTables(const Scene& scene, Method method, const MethodOptions& options, TablesFor device) {
   MethodTables t;
   const Environment& env = scene.environment;
@@ -139,12 +146,8 @@ glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method meth
     return estimateWis(scene, sp, spp, methodOptions.wisOrder, method == Method::WisBiased, tables.wis(), sampler,
                        counters);
   if (method == Method::Tsis) return estimateTsis(scene, sp, spp, tables.tsisTable(), sampler, counters);
-  if (method == Method::HtFrontier) {
-    FrontierOptions options;
-    options.refinements = methodOptions.frontierRefinements;
-    options.colourControl = methodOptions.frontierColourControl;
-    return estimateHtFrontier(scene, sp, options, spp, rng, sampler, counters, tables);
-  }
+  if (method == Method::HtFrontier)
+    return estimateHtFrontier(scene, sp, frontierOptionsFor(methodOptions), spp, rng, sampler, counters, tables);
   if (method == Method::Ris) return estimateRis(scene, sp, spp, methodOptions.risCandidates, sampler, counters);
   const Shading sh(scene, sp, counters);
   const Material& mat = *sp.material;

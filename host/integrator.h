@@ -12,6 +12,7 @@
 #include <glm/vec3.hpp>
 
 #include "ht.h"
+#include "ht_frontier.h"
 #include "rng.h"
 #include "sampler.h"
 #include "scene.h"
@@ -63,8 +64,10 @@ struct MethodOptions {
   SamplerKind sampler = SamplerKind::Stratified;  // every method: the per-pixel sample points (sampler.h)
 };
 
-// The HT traversal's options for one of the `ht*` methods.
+// The HT traversal's options for one of the `ht*` methods, and
+// ht-frontier's: what the CPU reference and the GPU path both run.
 HtOptions htOptionsFor(Method method, const MethodOptions& options);
+FrontierOptions frontierOptionsFor(const MethodOptions& options);
 
 // The tables `method` reads at every shading point of `scene` (HEALPix
 // geometry, BRDF tables, wis's node centres, tsis's summed-area table);

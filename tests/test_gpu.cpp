@@ -673,16 +673,18 @@ TEST(GpuRenderTiles, BlackEnvironmentAndRefusedMethods) {
   scene.environment = constantEnvironment(2, glm::vec3(0.0f));
   GpuRenderer r(gpuOptions());
   r.setScene(scene);
-  for (Method m : {Method::Uniform, Method::Env, Method::Mis, Method::Ris, Method::Tsis, Method::Wis, Method::HtFrontier}) {
+  // Every method of the registry: black where the GPU path has it, refused where not.
+  for (const MethodInfo& info : allMethods()) {
+    const Method m = info.method;
+    EXPECT_EQ(gpuSupportsMethod(m), info.gpu) << info.name;
+    if (!info.gpu) {
+      EXPECT_THROW(r.render(settings(m, 2, 1, 16, 8)), Error) << info.name;
+      continue;
+    }
     GpuRenderResult g = r.render(settings(m, 2, 1, 16, 8));
-    for (const glm::vec3& p : g.result.image.pixels) ASSERT_EQ(p, glm::vec3(0.0f)) << methodName(m);
-  }
-  for (Method m : {Method::Ht, Method::HtVisBiased}) {
-    GpuRenderResult g = r.render(settings(m, 2, 1, 16, 8));
-    for (const glm::vec3& p : g.result.image.pixels) ASSERT_EQ(p, glm::vec3(0.0f)) << methodName(m);
+    for (const glm::vec3& p : g.result.image.pixels) ASSERT_EQ(p, glm::vec3(0.0f)) << info.name;
   }
   EXPECT_FALSE(gpuSupportsMethod(Method::Oracle));
-  EXPECT_THROW(r.render(settings(Method::Oracle, 2, 1, 16, 8)), Error);
   expectNoValidationMessages();
 }
 
@@ -769,7 +771,11 @@ TEST(GpuCompetitors, TsisAndWisNeedFloat64) {
   for (Method m : {Method::Ris, Method::Tsis, Method::Wis, Method::WisBiased}) EXPECT_TRUE(gpuSupportsMethod(m));
   GpuRenderer r(gpuOptions(true));
   r.setScene(testScene());
-  for (Method m : {Method::Tsis, Method::Wis, Method::WisBiased}) {
+  std::vector<Method> float64Methods;
+  for (const MethodInfo& info : allMethods())
+    if (info.gpuFloat64) float64Methods.push_back(info.method);
+  EXPECT_EQ(float64Methods, (std::vector<Method>{Method::Wis, Method::WisBiased, Method::Tsis}));
+  for (Method m : float64Methods) {
     try {
       r.render(settings(m, 2, 1, 16, 8));
       ADD_FAILURE() << methodName(m) << ": no error";
@@ -839,12 +845,11 @@ std::string highSppName(const HighSppCase& c) {
 
 std::vector<HighSppCase> highSppCases(int spp) {
   std::vector<HighSppCase> cases;
-  for (Method m : {Method::Uniform, Method::Cosine, Method::Env, Method::Brdf, Method::Mis, Method::Ht, Method::HtVis,
-                   Method::HtBiased, Method::HtVisBiased, Method::Wis, Method::WisBiased, Method::Tsis, Method::Ris,
-                   Method::HtFrontier})
-    cases.push_back({m, MethodOptions::BrdfBounds::Analytic, spp});
-  for (Method m : {Method::Ht, Method::HtVis, Method::HtBiased, Method::HtVisBiased})
-    cases.push_back({m, MethodOptions::BrdfBounds::Table, spp});
+  // Every method the GPU path has, in the registry's order; HT's also with tabulated BRDF bounds.
+  for (const MethodInfo& info : allMethods())
+    if (info.gpu) cases.push_back({info.method, MethodOptions::BrdfBounds::Analytic, spp});
+  for (const MethodInfo& info : allMethods())
+    if (info.gpu && info.family == Family::Ht) cases.push_back({info.method, MethodOptions::BrdfBounds::Table, spp});
   return cases;
 }
 
