@@ -1,6 +1,7 @@
 #include "env_sampler.h"
 
 #include <algorithm>
+#include <vector>
 
 #include "sampling.h"
 
@@ -31,9 +32,10 @@ int pickRescaled(const float* w, double& u, float& prob) {
 
 }  // namespace
 
-EnvSample sampleEnvironment(const Environment& env, glm::dvec2 u) {
-  const MaxAvgTree& t = env.tree;
-  if (!env.hasLight()) return {glm::vec3(0.0f, 1.0f, 0.0f), 0, 0.0f};
+EnvSample sampleEnvironment(const Environment& env, glm::dvec2 u) { return sampleEnvironment(env, env.tree, u); }
+
+EnvSample sampleEnvironment(const Environment& env, const MaxAvgTree& t, glm::dvec2 u) {
+  if (!(t.total() > 0.0)) return {glm::vec3(0.0f, 1.0f, 0.0f), 0, 0.0f};
   double x = u.x;
   float prob;
   uint64_t node = uint64_t(pickRescaled<12>(&t.avgv[0], x, prob));
@@ -51,7 +53,10 @@ EnvSample sampleEnvironment(const Environment& env, glm::dvec2 u) {
 }
 
 double environmentPixelProbability(const Environment& env, uint64_t pixel) {
-  const MaxAvgTree& t = env.tree;
+  return environmentPixelProbability(env.tree, pixel);
+}
+
+double environmentPixelProbability(const MaxAvgTree& t, uint64_t pixel) {
   double p = 1.0;
   for (int level = t.order; level >= 1; --level) {
     const float* siblings = &t.avgv[MaxAvgTree::levelOffset(level) + (pixel & ~uint64_t(3))];
@@ -67,8 +72,21 @@ double environmentPixelProbability(const Environment& env, uint64_t pixel) {
   return p * double(t.avgv[pixel] / sum);
 }
 
-float environmentPdf(const Environment& env, const glm::vec3& dir) {
-  return float(environmentPixelProbability(env, env.pixelOf(dir)) / env.pixelSolidAngle());
+float environmentPdf(const Environment& env, const glm::vec3& dir) { return environmentPdf(env, env.tree, dir); }
+
+float environmentPdf(const Environment& env, const MaxAvgTree& tree, const glm::vec3& dir) {
+  return float(environmentPixelProbability(tree, env.pixelOf(dir)) / env.pixelSolidAngle());
+}
+
+MaxAvgTree compensatedTree(const Environment& env) {
+  const MaxAvgTree& t = env.tree;
+  const uint64_t pixels = MaxAvgTree::levelSize(t.order);
+  const float* leaves = &t.avgv[MaxAvgTree::levelOffset(t.order)];
+  // The mean over the sphere: every HEALPix pixel has the same solid angle.
+  const float mean = float(t.total() / double(pixels));
+  std::vector<float> compensated(pixels);
+  for (uint64_t i = 0; i < pixels; ++i) compensated[i] = std::max(0.0f, leaves[i] - mean);
+  return buildMaxAvgTree(t.order, compensated);
 }
 
 }  // namespace ht

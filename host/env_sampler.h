@@ -28,4 +28,15 @@ float environmentPdf(const Environment& env, const glm::vec3& dir);
 // Probability of choosing leaf `pixel` (discrete, sums to 1 over pixels).
 double environmentPixelProbability(const Environment& env, uint64_t pixel);
 
+// The same by the average tree `tree` of other values over the map's
+// pixels (mis-compensated's): proportional to its leaves, 0 where they are.
+EnvSample sampleEnvironment(const Environment& env, const MaxAvgTree& tree, glm::dvec2 u);
+float environmentPdf(const Environment& env, const MaxAvgTree& tree, const glm::vec3& dir);
+double environmentPixelProbability(const MaxAvgTree& tree, uint64_t pixel);
+
+// MIS compensation (Karlik et al. 2019): the tree of max(0, L_lum - mean
+// L_lum) over the map's pixels, which leaves to BRDF sampling the
+// directions no brighter than average.
+MaxAvgTree compensatedTree(const Environment& env);
+
 }  // namespace ht

@@ -15,6 +15,7 @@
 #include "ht_frontier.h"
 #include "sampling.h"
 #include "tables.h"
+#include "tree.h"
 #include "tsis.h"
 #include "wis.h"
 
@@ -52,7 +53,8 @@ uint32_t firstBatchLimit(const RenderSettings& s, int envOrder, size_t shapes) {
   const uint64_t descent = uint64_t(envOrder) + 4 + shapes;  // one environment sample and its shadow ray
   uint64_t cost = descent;
   switch (s.method) {
-    case Method::Mis: cost = 2 * descent; break;
+    case Method::Mis:
+    case Method::MisCompensated: cost = 2 * descent; break;
     case Method::Ris: cost = uint64_t(std::max(s.options.risCandidates, 1)) * descent + shapes; break;
     case Method::Tsis: cost = 2 * HT_TSIS_REGIONS + 4 * descent; break;
     case Method::Wis:
@@ -134,7 +136,8 @@ bool usesBrdfTable(const RenderSettings& s) {
 uint64_t directionsPerPixel(const RenderSettings& s) {
   const uint64_t spp = uint64_t(std::max(s.spp, 1));
   switch (s.method) {
-    case Method::Mis: return 2 * spp;
+    case Method::Mis:
+    case Method::MisCompensated: return 2 * spp;
     case Method::Ris: return spp * uint64_t(std::max(s.options.risCandidates, 1));
     case Method::Tsis: return spp + 5 * HT_TSIS_REGIONS;
     case Method::Wis:
@@ -162,6 +165,25 @@ std::string gpuSceneLimit(Method method, size_t occluders) {
 void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables& t) {
   const MethodInfo& info = methodInfo(s.method);
   bool changed = false;
+  // mis-compensated's environment technique descends its own tree, in the
+  // map's tree's place while it renders (the map's is back for any other).
+  const bool compensatedNow = s.method == Method::MisCompensated;
+  if (compensatedNow && compensated != t.compensated) {
+    const MaxAvgTree& tree = t.compensatedTree();
+    compensatedBuffers.clear();
+    uploadChunked(ctx, tree.avgv.data(), tree.avgv.size(), sizeof(float), kTreeChunkElements, compensatedBuffers,
+                  compensatedTreeAvg, "mis-compensated tree");
+    compensated = t.compensated;
+    samplingCompensated = false;
+  }
+  if (compensatedNow != samplingCompensated) {
+    std::copy(std::begin(compensatedNow ? compensatedTreeAvg : envTreeAvg),
+              std::end(compensatedNow ? compensatedTreeAvg : envTreeAvg), scene.treeAvg);
+    scene.envHasLight = compensatedNow ? (compensated->total() > 0.0 ? 1u : 0u) : envHasLight;
+    texelBuffers[HT_BINDING_TREE_AVG_TEXELS].buffer = compensatedNow ? &compensatedBuffers[0] : envTreeAvgTexels;
+    samplingCompensated = compensatedNow;
+    changed = true;
+  }
   if (info.family == Family::Ht || s.method == Method::HtFrontier) {
     if (const std::string limit = gpuSceneLimit(s.method, occluders); !limit.empty()) throw Error(limit);
     if (geometry != t.htGeometry) {

@@ -236,6 +236,11 @@ void GpuRenderer::setScene(const Scene& scene) {
   for (auto& [binding, t] : m.texelBuffers) t.buffer = nullptr;
   m.texelBuffers[HT_BINDING_RADIANCE_TEXELS].buffer = &m.chunks[first[0]];
   m.texelBuffers[HT_BINDING_TREE_AVG_TEXELS].buffer = &m.chunks[first[1]];
+  std::copy(std::begin(gs.treeAvg), std::end(gs.treeAvg), m.envTreeAvg);
+  m.envTreeAvgTexels = &m.chunks[first[1]];
+  m.compensated.reset();
+  m.compensatedBuffers.clear();
+  m.samplingCompensated = false;
   m.texelBuffers[HT_BINDING_TREE_MAX_TEXELS].buffer = &m.chunks[first[2]];
 
   // The camera basis exactly as cameraRay (host/scene.cpp) computes it.
@@ -250,6 +255,7 @@ void GpuRenderer::setScene(const Scene& scene) {
   gs.tanHalfFov = std::tan(0.5f * c.fovY * kPi / 180.0f);
   gs.envOrder = uint32_t(env.order);
   gs.envHasLight = env.hasLight() ? 1u : 0u;
+  m.envHasLight = gs.envHasLight;
   gs.envCosYaw = env.cosYaw;
   gs.envSinYaw = env.sinYaw;
   const double solidAngle = env.pixelSolidAngle();

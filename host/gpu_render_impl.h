@@ -29,6 +29,7 @@ using namespace ht::gpu;
 class BrdfTable;
 struct FrontierColours;
 struct HtGeometry;
+struct MaxAvgTree;
 struct TsisTable;
 
 namespace gpu_detail {
@@ -129,6 +130,15 @@ struct GpuRenderer::Impl {
   uint64_t frontierCentroid[HT_FRONTIER_CHROMA_CHUNKS] = {};
   std::vector<vk::Buffer> frontierBuffers;
   GpuFrontierScene frontier{};
+  // The map's average tree as setScene uploaded it, and mis-compensated's
+  // own, which takes its place (GpuScene::treeAvg) while that method renders.
+  uint64_t envTreeAvg[HT_MAX_CHUNKS] = {};
+  vk::Buffer* envTreeAvgTexels = nullptr;
+  uint32_t envHasLight = 0;
+  std::shared_ptr<const MaxAvgTree> compensated;
+  std::vector<vk::Buffer> compensatedBuffers;
+  uint64_t compensatedTreeAvg[HT_MAX_CHUNKS] = {};
+  bool samplingCompensated = false;
   bool recordHtSamples = false;
   vk::Buffer htSampleLog;
 

@@ -45,6 +45,9 @@ constexpr std::array kMethods = {
     MethodInfo{Method::HtFrontier, "ht-frontier",
                "exactly n stratified samples of env x BRDF x visibility over an adaptive HT frontier, BRDF by MIS",
                Product, false, true, true},
+    MethodInfo{Method::MisCompensated, "mis-compensated",
+               "mis with the environment's density from max(0, L - mean L) (MIS compensation)", Baseline, false, false,
+               true, false, 2},
 };
 
 constexpr bool registryInEnumOrder() {
@@ -61,7 +64,7 @@ static_assert(int(Method::Uniform) == HT_METHOD_UNIFORM && int(Method::Cosine) =
               int(Method::HtVisBiased) == HT_METHOD_HT_VIS_BIASED);
 static_assert(int(Method::Oracle) == HT_METHOD_ORACLE && int(Method::Wis) == HT_METHOD_WIS &&
               int(Method::WisBiased) == HT_METHOD_WIS_BIASED && int(Method::Tsis) == HT_METHOD_TSIS &&
-              int(Method::Ris) == HT_METHOD_RIS);
+              int(Method::Ris) == HT_METHOD_RIS && int(Method::MisCompensated) == HT_METHOD_MIS_COMPENSATED);
 
 float powerHeuristic(float a, float b) {
   float a2 = a * a, b2 = b * b;
@@ -125,6 +128,7 @@ MethodTables prepareTables(const Scene& scene, Method method, const MethodOption
   if (method == Method::Tsis) t.tsis = std::make_shared<const TsisTable>(buildTsisTable(env));
   if (method == Method::HtFrontier)
     t.frontierColours = std::make_shared<const FrontierColours>(frontierColours(env, *t.htGeometry));
+  if (method == Method::MisCompensated) t.compensated = std::make_shared<const MaxAvgTree>(compensatedTree(env));
   return t;
 }
 
@@ -190,8 +194,13 @@ glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method meth
         ++counters.directions;
         break;
       }
-      case Method::Mis: {
-        EnvSample s = sampleEnvironment(env, sampler.get2DPrecise());
+      case Method::Mis:
+      case Method::MisCompensated: {
+        // The environment's technique by its own density; mis-compensated's
+        // is zero where L is no brighter than average, and BRDF sampling,
+        // positive wherever f cos is, covers those directions alone.
+        const MaxAvgTree& envTree = method == Method::Mis ? env.tree : tables.compensatedTree();
+        EnvSample s = sampleEnvironment(env, envTree, sampler.get2DPrecise());
         if (s.pdf > 0.0f) {
           float pb = bsdfPdf(mat, sh.woLocal, sh.frame.toLocal(s.dir));
           est += sh.reflected(s.dir, env.radiance[s.pixel]) * (powerHeuristic(s.pdf, pb) / s.pdf);
@@ -199,7 +208,7 @@ glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method meth
         float pb;
         glm::vec3 wi = bsdfDirection(pb);
         if (pb > 0.0f) {
-          float pe = environmentPdf(env, wi);
+          float pe = environmentPdf(env, envTree, wi);
           est += sh.reflected(wi) * (powerHeuristic(pb, pe) / pb);
         }
         counters.directions += 2;

@@ -21,11 +21,12 @@
 
 namespace ht {
 
-enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased, Oracle, Wis, WisBiased, Tsis, Ris, HtFrontier };
+enum class Method { Uniform, Cosine, Env, Brdf, Mis, Ht, HtVis, HtBiased, HtVisBiased, Oracle, Wis, WisBiased, Tsis, Ris, HtFrontier,
+                    MisCompensated };
 
 // The families the methods come from.
 enum class Family {
-  Baseline,    // one technique per direction (uniform, cosine, env, brdf, mis)
+  Baseline,    // one technique per direction (uniform, cosine, env, brdf, mis, mis-compensated)
   Ht,          // the seed's hierarchical thresholding (ht, ht-vis, ht-biased, ht-vis-biased)
   Oracle,      // the brute-force product, the variance floor
   Competitor,  // the talk's other product samplers (wis, tsis, ris)

@@ -72,6 +72,9 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
                   uint64_t(std::max(in.threads, 1)) * kFrontierSharedTables * kFrontierSharedTableBytes);
     tables += add("ht-frontier colour bins, chroma and centroids (and their sums while built)", nodes * 25);
   }
+  uint64_t compensated = 0;
+  if (in.method == Method::MisCompensated)
+    compensated = tables += add("mis-compensated tree", nodes * 8);
   uint64_t sat = 0;
   if (in.method == Method::Tsis) {
     const uint64_t n = (uint64_t(1) << std::min(in.envOrder, TsisTable::kMaxLevel)) + 1;
@@ -84,7 +87,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
   if (in.gpu) {
     // The driver with its shader compiler (LLVM in lavapipe), as measured.
     gpu += kVulkanBytes;
-    gpu += radiance + trees + sat;
+    gpu += radiance + trees + sat + compensated / 2;  // the compensated tree's averages
     if (isHt(in.method)) {
       // Geometry; per pixel of a tile its pending samples and recorded leaves.
       const uint64_t tile =

@@ -37,4 +37,9 @@ const FrontierColours& MethodTables::colours() const {
   return *frontierColours;
 }
 
+const MaxAvgTree& MethodTables::compensatedTree() const {
+  if (!compensated) throw Error("internal: mis-compensated's tree used but not prepared");
+  return *compensated;
+}
+
 }  // namespace ht

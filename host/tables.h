@@ -18,6 +18,7 @@ struct HtNodes;
 class BrdfTable;
 struct TsisTable;
 struct FrontierColours;
+struct MaxAvgTree;
 struct Scene;
 struct Material;
 
@@ -28,6 +29,7 @@ struct MethodTables {
   std::shared_ptr<const std::vector<glm::vec3>> wisCenters;   // wis*: node centres up to its order
   std::shared_ptr<const TsisTable> tsis;                      // tsis
   std::shared_ptr<const FrontierColours> frontierColours;     // ht-frontier: colour bins and chroma per average-tree node
+  std::shared_ptr<const MaxAvgTree> compensated;               // mis-compensated: the environment technique's tree
 
   // Each throws an internal ht::Error when its table was not prepared.
   const HtGeometry& geometry() const;
@@ -37,6 +39,7 @@ struct MethodTables {
   const std::vector<glm::vec3>& wis() const;
   const std::shared_ptr<const TsisTable>& tsisTable() const;
   const FrontierColours& colours() const;
+  const MaxAvgTree& compensatedTree() const;
 };
 
 }  // namespace ht

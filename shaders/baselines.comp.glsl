@@ -1,5 +1,5 @@
 // The baseline methods of host/integrator.cpp (uniform, cosine, env, brdf,
-// mis), sample for sample as on the CPU.
+// mis, mis-compensated), sample for sample as on the CPU.
 #version 460
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_scalar_block_layout : require
@@ -37,7 +37,8 @@ uint baselineSamples(Shading sh, uint method, uint begin, uint end, inout Sample
       vec3 wi = bsdfDirection(sh, smp, pdf);
       if (pdf > 0.0) est = reflected(sh, wi, envEval(wi)) / pdf;
       directions += 1u;
-    } else if (method == HT_METHOD_MIS) {
+    } else if (method == HT_METHOD_MIS || method == HT_METHOD_MIS_COMPENSATED) {
+      // mis-compensated: the scene's sampling tree is its compensated one.
       EnvSample s = sampleEnvironmentAt(smp);
       if (s.pdf > 0.0) {
         float pb = bsdfPdf(sh.material, sh.woLocal, toLocal(sh.frame, s.dir));

@@ -56,6 +56,7 @@
 #define HT_METHOD_TSIS 12
 #define HT_METHOD_RIS 13
 #define HT_METHOD_HT_FRONTIER 14
+#define HT_METHOD_MIS_COMPENSATED 15
 #define HT_METHOD_ANY 0xFFFFFFFFu  // pixel.glsl's specialization constant: use GpuPush::method
 #define HT_SPEC_METHOD 0           // its constant_id
 #define HT_SPEC_TEXELS 1           // constant_id of bindings.glsl's kTexels
@@ -179,7 +180,7 @@ layout(buffer_reference, scalar, buffer_reference_align = 8) buffer WisScratch {
 struct GpuScene {
   // Device addresses first: 8-byte aligned.
   HT_CHUNK_REF(Vec3Chunk) radiance[HT_MAX_CHUNKS];   // Environment::radiance
-  HT_CHUNK_REF(FloatChunk) treeAvg[HT_MAX_CHUNKS];   // MaxAvgTree::avgv
+  HT_CHUNK_REF(FloatChunk) treeAvg[HT_MAX_CHUNKS];   // MaxAvgTree::avgv (mis-compensated: its own tree's)
   HT_CHUNK_REF(FloatChunk) treeMax[HT_MAX_CHUNKS];   // MaxAvgTree::maxv
   // HT stage (host/ht.h HtGeometry, same node layout as the trees); unused
   // (0) by the baseline methods.
@@ -195,7 +196,7 @@ struct GpuScene {
   vec3 camU;
   uint envOrder;      // Nside = 2^envOrder
   vec3 camV;
-  uint envHasLight;   // 0: all-black map, nothing to sample
+  uint envHasLight;   // 0: treeAvg has no mass, nothing to sample (an all-black map)
   float envCosYaw;
   float envSinYaw;
   uvec2 envPixelSolidAngleBits;  // double: 4 pi / (12 4^order), as (low, high) words

@@ -338,8 +338,10 @@ struct MethodCase {
 };
 
 std::string caseName(const MethodCase& c) {
-  return std::string(methodName(c.method)) + (c.fp32 ? "_fp32" : "_fp64") +
-         (c.sampler == SamplerKind::Independent ? "_independent" : "");
+  std::string name = std::string(methodName(c.method)) + (c.fp32 ? "_fp32" : "_fp64") +
+                     (c.sampler == SamplerKind::Independent ? "_independent" : "");
+  std::replace(name.begin(), name.end(), '-', '_');
+  return name;
 }
 
 // Not env and mis in fp32: the shader without doubles descends the
@@ -348,7 +350,8 @@ std::string caseName(const MethodCase& c) {
 const std::vector<MethodCase> kCases = {
     {Method::Uniform, false}, {Method::Cosine, false}, {Method::Env, false}, {Method::Brdf, false},
     {Method::Mis, false},     {Method::Uniform, true}, {Method::Cosine, true}, {Method::Brdf, true},
-    {Method::Env, false, SamplerKind::Independent},    {Method::Mis, false, SamplerKind::Independent}};
+    {Method::Env, false, SamplerKind::Independent},    {Method::Mis, false, SamplerKind::Independent},
+    {Method::MisCompensated, false}};
 
 // Renders on the GPU (validation on) and checks that nothing was reported.
 GpuRenderResult renderGpu(const Scene& scene, const RenderSettings& rs, bool fp32) {

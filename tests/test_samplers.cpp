@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <functional>
+#include <memory>
 #include <random>
 
 #include "bsdf.h"
@@ -66,6 +67,15 @@ Case envCase(std::string name, const Environment& env) {
           [&env](glm::dvec3 d) { return double(environmentPdf(env, env.fromHealpixFrame(d))); }, env.order};
 }
 
+// mis-compensated's environment technique: the density of max(0, L - mean L).
+Case compensatedCase(std::string name, const Environment& env) {
+  auto tree = std::make_shared<const MaxAvgTree>(compensatedTree(env));
+  return {std::move(name),
+          [&env, tree](Rng& rng) { return env.toHealpixFrame(sampleEnvironment(env, *tree, rng.next2Precise()).dir); },
+          [&env, tree](glm::dvec3 d) { return double(environmentPdf(env, *tree, env.fromHealpixFrame(d))); },
+          env.order};
+}
+
 std::vector<Case> cases() {
   std::vector<Case> c;
   c.push_back({"uniform-sphere", [](Rng& r) { return glm::dvec3(sampleUniformSphere({r.next(), r.next()})); },
@@ -83,6 +93,8 @@ std::vector<Case> cases() {
   c.push_back(bsdfCase("ggx-0.05-grazing", makeMaterial(MaterialType::Ggx, none, glm::vec3(0.9f), 1, 0.05f), 85));
   c.push_back(envCase("env-sunrise", sunrise()));
   c.push_back(envCase("env-sun-black-half", sunAndSky()));
+  c.push_back(compensatedCase("env-compensated-sunrise", sunrise()));
+  c.push_back(compensatedCase("env-compensated-sun-black-half", sunAndSky()));
   return c;
 }
 
