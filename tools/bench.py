@@ -177,9 +177,11 @@ def reference(args, scene, outdir):
     text = Path(scene).read_bytes()
     version = run([args.htrender, "--version"]).strip()
     sampler = ["--sampler", "stratified"]  # the reference's own noise falls fastest with it
-    key = hashlib.sha256(b"|".join([text, str(args.width).encode(), str(args.height).encode(),
-                                    args.ref_method.encode(), str(args.ref_spp).encode(),
-                                    version.encode(), " ".join(sampler).encode()])).hexdigest()[:16]
+    parts = [text, str(args.width).encode(), str(args.height).encode(), args.ref_method.encode(),
+             str(args.ref_spp).encode(), version.encode(), " ".join(sampler).encode()]
+    if args.ref_device != "cpu":  # the CPU's references keep their keys
+        parts += [args.ref_device.encode(), args.extra.encode()]
+    key = hashlib.sha256(b"|".join(parts)).hexdigest()[:16]
     ref = outdir / f"ref-{Path(scene).stem}-{key}.exr"
     meta = ref.with_suffix(".meta.json")
     if ref.exists() and meta.exists():
@@ -187,12 +189,15 @@ def reference(args, scene, outdir):
     print(f"bench: reference {ref.name}: {args.ref_method} at {args.ref_spp} spp (two halves)", file=sys.stderr)
     half = max(1, args.ref_spp // 2)
     a, b = outdir / f"{ref.stem}-a.exr", outdir / f"{ref.stem}-b.exr"
-    sa = render(args, scene, args.ref_method, half, 1000001, a, extra=sampler)
-    render(args, scene, args.ref_method, half, 2000003, b, extra=sampler)
+    device = args.ref_device
+    extra = sampler + (args.extra.split() if device != "cpu" else [])
+    sa = render(args, scene, args.ref_method, half, 1000001, a, device, extra)
+    render(args, scene, args.ref_method, half, 2000003, b, device, extra)
     average_exr(args, a, b, ref)
     # Each half has error e, their difference sqrt(2) e, their mean e / sqrt(2).
     diff = compare(args, a, b)
-    info = {"method": args.ref_method, "spp": 2 * half, "sampler": "stratified", "version": version, "key": key,
+    info = {"method": args.ref_method, "spp": 2 * half, "sampler": "stratified", "device": device,
+            "version": version, "key": key,
             "width": sa["width"], "height": sa["height"],
             "residual_rmse": diff["rmse"] / 2.0, "residual_relmse": diff["relmse"] / 4.0}
     write_atomic(meta, json.dumps(info, indent=2))
@@ -245,6 +250,8 @@ def main():
     p.add_argument("--height", type=int, default=0)
     p.add_argument("--ref-method", default="mis")
     p.add_argument("--ref-spp", type=int, default=4096)
+    p.add_argument("--ref-device", default="cpu",
+                   help="device of the reference's renders (a GPU's with --extra, e.g. its --gpu-index)")
     p.add_argument("--samplers", default="stratified",
                    help="comma-separated per-pixel samplers (htrender render --sampler); every point is rendered "
                         "with each, side by side")
