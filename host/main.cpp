@@ -227,6 +227,7 @@ nlohmann::json renderStats(const RenderOptions& o, const Scene& scene, const Ren
       {"outputs", {o.out, fs::path(o.out).replace_extension(".png").string()}},
   };
   // The environment stage split: file read + checks, HEALPix resampling, max/avg tree.
+  stats["seconds"]["scene_bvh"] = scene.sphereBvh.buildSeconds;  // part of "parse"
   stats["seconds"]["environment_load"] = scene.environmentStats.loadSeconds;
   stats["seconds"]["environment_trees"] = scene.environment.treeSeconds;
   stats["seconds"]["environment_resample"] =

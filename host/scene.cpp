@@ -245,6 +245,7 @@ Scene parseSceneText(const std::string& text, const std::string& path) {
     scene.planes.push_back({p.vec3("point"), glm::normalize(n / largest), materialIndex(p)});
   }
   if (scene.spheres.empty() && scene.planes.empty()) top.fail("the scene has no spheres and no planes");
+  scene.sphereBvh = buildBvh(scene.spheres);
   return scene;
 }
 
@@ -351,19 +352,91 @@ bool hitPlane(const Plane& p, const Ray& ray, float tMin, float tMax, float& t) 
 
 }  // namespace
 
+namespace {
+
+bool usesBvh(const Scene& scene) {
+  return !scene.sphereBvh.nodes.empty() && scene.sphereBvh.spheres == scene.spheres.size();
+}
+
+// Visits the BVH's leaves whose boxes the ray enters before `limit()`, in
+// depth-first order, the nearer child first; `leaf` returns true to stop.
+template <class Limit, class Leaf>
+void traverseBvh(const Bvh& bvh, const Ray& ray, Limit limit, Leaf leaf) {
+  const glm::vec3 inv = 1.0f / ray.dir;
+  uint32_t stack[64];
+  int size = 0;
+  uint32_t node = 0;
+  for (;;) {
+    const BvhNode& n = bvh.nodes[node];
+    float enter;
+    if (rayBox(n, ray.origin, inv, limit(), enter)) {
+      if (n.count > 0) {
+        if (leaf(n)) return;
+      } else {
+        const uint32_t left = node + 1, right = n.first;
+        float tl, tr;
+        const bool hl = rayBox(bvh.nodes[left], ray.origin, inv, limit(), tl);
+        const bool hr = rayBox(bvh.nodes[right], ray.origin, inv, limit(), tr);
+        if (hl && hr) {
+          node = tl <= tr ? left : right;
+          stack[size++] = tl <= tr ? right : left;
+          continue;
+        }
+        if (hl || hr) {
+          node = hl ? left : right;
+          continue;
+        }
+      }
+    }
+    if (size == 0) return;
+    node = stack[--size];
+  }
+}
+
+// The linear scan's closest sphere: the least valid root in (tMin, tMax),
+// ties to the lower index. `best` is the sphere, or -1.
+float closestSphere(const Scene& scene, const Ray& ray, float tMin, float tMax, int& best) {
+  float bestT = tMax;
+  best = -1;
+  float t;
+  if (usesBvh(scene)) {
+    const Bvh& bvh = scene.sphereBvh;
+    traverseBvh(bvh, ray, [&] { return bestT; }, [&](const BvhNode& n) {
+      for (uint32_t k = n.first; k < n.first + n.count; ++k) {
+        const int i = int(bvh.order[k]);
+        if (hitSphere(scene.spheres[size_t(i)], ray, tMin, tMax, t) && (t < bestT || (t == bestT && i < best))) {
+          bestT = t;
+          best = i;
+        }
+      }
+      return false;
+    });
+    return bestT;
+  }
+  for (size_t i = 0; i < scene.spheres.size(); ++i)
+    if (hitSphere(scene.spheres[i], ray, tMin, bestT, t)) {
+      bestT = t;
+      best = int(i);
+    }
+  return bestT;
+}
+
+}  // namespace
+
 bool intersectScene(const Scene& scene, const Ray& ray, float tMin, float tMax, Hit& hit) {
   bool any = false;
+  int sphere;
+  tMax = closestSphere(scene, ray, tMin, tMax, sphere);
+  if (sphere >= 0) {
+    const Sphere& s = scene.spheres[size_t(sphere)];
+    any = true;
+    hit.t = tMax;
+    hit.position = ray.origin + tMax * ray.dir;
+    hit.normal = glm::normalize(hit.position - s.center);
+    hit.material = s.material;
+    hit.flat = false;
+  }
   float t;
-  for (const Sphere& s : scene.spheres)
-    if (hitSphere(s, ray, tMin, tMax, t)) {
-      tMax = t;
-      any = true;
-      hit.t = t;
-      hit.position = ray.origin + t * ray.dir;
-      hit.normal = glm::normalize(hit.position - s.center);
-      hit.material = s.material;
-      hit.flat = false;
-    }
   for (const Plane& p : scene.planes)
     if (hitPlane(p, ray, tMin, tMax, t)) {
       tMax = t;
@@ -382,8 +455,19 @@ bool occluded(const Scene& scene, const glm::vec3& origin, const glm::vec3& dir)
   Ray ray{origin, dir};
   const float tMax = std::numeric_limits<float>::infinity();
   float t;
-  for (const Sphere& s : scene.spheres)
-    if (hitSphere(s, ray, 0.0f, tMax, t)) return true;
+  if (usesBvh(scene)) {
+    bool blocked = false;
+    const Bvh& bvh = scene.sphereBvh;
+    traverseBvh(bvh, ray, [&] { return tMax; }, [&](const BvhNode& n) {
+      for (uint32_t k = n.first; k < n.first + n.count && !blocked; ++k)
+        blocked = hitSphere(scene.spheres[bvh.order[k]], ray, 0.0f, tMax, t);
+      return blocked;
+    });
+    if (blocked) return true;
+  } else {
+    for (const Sphere& s : scene.spheres)
+      if (hitSphere(s, ray, 0.0f, tMax, t)) return true;
+  }
   for (const Plane& p : scene.planes)
     if (hitPlane(p, ray, 0.0f, tMax, t)) return true;
   return false;

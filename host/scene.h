@@ -9,6 +9,8 @@
 #include <glm/vec3.hpp>
 
 #include "bsdf.h"
+#include "bvh.h"
+#include "shapes.h"
 #include "environment.h"
 
 namespace ht {
@@ -18,18 +20,6 @@ struct Camera {
   glm::vec3 lookAt{0.0f};
   glm::vec3 up{0.0f, 1.0f, 0.0f};
   float fovY = 40.0f;  // degrees
-};
-
-struct Sphere {
-  glm::vec3 center;
-  float radius;
-  int material;
-};
-
-struct Plane {
-  glm::vec3 point;
-  glm::vec3 normal;  // unit
-  int material;
 };
 
 struct EnvironmentDesc {
@@ -48,14 +38,12 @@ struct Scene {
   std::vector<std::string> materialNames;
   std::vector<Sphere> spheres;
   std::vector<Plane> planes;
+  // Over `spheres`, made by parseScene; where it covers another number of
+  // spheres (a scene assembled by hand), rays scan them all.
+  Bvh sphereBvh;
   EnvironmentDesc environmentDesc;
   Environment environment;
   EnvironmentStats environmentStats;
-};
-
-struct Ray {
-  glm::vec3 origin;
-  glm::vec3 dir;  // unit
 };
 
 struct Hit {
