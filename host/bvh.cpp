@@ -29,6 +29,7 @@ constexpr int kBins = 12;
 // Past this depth splits are at the median: the depth, and so the
 // traversal's stack, stays bounded whatever the spheres.
 constexpr int kSahDepth = 40;
+static_assert(kSahDepth + 32 < kBvhMaxDepth, "median splits add at most log2(spheres) levels");
 
 struct Builder {
   const std::vector<Sphere>& spheres;
@@ -61,11 +62,15 @@ struct Builder {
     const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : extent.y >= extent.z ? 1 : 2;
     size_t mid = 0;
     bool partitioned = false;
-    if (extent[axis] > 0.0f && depth < kSahDepth) {
-      // Binned SAH: the plane between bins with the least n x area on both sides.
-      const float scale = float(kBins) / extent[axis];
+    // Binned SAH where the centres' spread gives a finite bin scale (not for
+    // centres too close together or too far apart for floats).
+    const float scale = float(kBins) / extent[axis];
+    if (extent[axis] > 0.0f && std::isfinite(extent[axis]) && std::isfinite(scale) && scale > 0.0f &&
+        depth < kSahDepth) {
+      // The plane between bins with the least n x area on both sides.
       auto binOf = [&](uint32_t i) {
-        return std::min(kBins - 1, int((spheres[i].center[axis] - centres.lo[axis]) * scale));
+        const float f = (spheres[i].center[axis] - centres.lo[axis]) * scale;
+        return f > 0.0f ? std::min(kBins - 1, int(std::min(f, float(kBins)))) : 0;
       };
       std::array<Box, kBins> bins;
       std::array<size_t, kBins> counts{};
@@ -128,8 +133,9 @@ Bvh buildBvh(const std::vector<Sphere>& spheres) {
 }
 
 bool rayBox(const BvhNode& node, const glm::vec3& o, const glm::vec3& inv, float tMax, float& t0) {
-  // fmin/fmax drop the NaN of 0 x inf: a ray parallel to a slab and starting
-  // on its plane is not constrained by it.
+  // fmin/fmax never return the NaN of 0 x inf (a ray parallel to a slab,
+  // starting on its plane): such a box is missed, and no sphere lies there,
+  // every one being inside its box by the pad.
   float enter = 0.0f, exit = tMax;
   for (int a = 0; a < 3; ++a) {
     const float ta = (node.lo[a] - o[a]) * inv[a], tb = (node.hi[a] - o[a]) * inv[a];
@@ -137,7 +143,9 @@ bool rayBox(const BvhNode& node, const glm::vec3& o, const glm::vec3& inv, float
     exit = std::fmin(exit, std::fmax(ta, tb));
   }
   t0 = enter;
-  return enter <= exit;
+  // The slack covers the slabs' rounding, which grows with the ray's
+  // distance rather than with the box's coordinates: it only prunes less.
+  return enter <= exit + 1e-5f * (std::fabs(enter) + std::fabs(exit));
 }
 
 }  // namespace ht

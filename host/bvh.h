@@ -26,8 +26,10 @@ struct Bvh {
   double buildSeconds = 0.0;
 };
 
-// At most this many spheres per leaf.
+// At most this many spheres per leaf; at most this many levels (the
+// traversal's stack).
 constexpr uint32_t kBvhLeafSize = 4;
+constexpr int kBvhMaxDepth = 80;
 
 Bvh buildBvh(const std::vector<Sphere>& spheres);
 

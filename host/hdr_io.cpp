@@ -143,6 +143,11 @@ HdrHeader parseHeader(const uint8_t* data, size_t size, uint64_t fileSize, const
     }
     // Comments, software names, GAMMA=, PRIMARIES= and the like change no value.
   }
+  // Real files say 0.1 to 100; far outside, dividing would overflow a pixel
+  // or flush it to 0 instead of giving its radiance.
+  if (!(h.exposure >= 1e-6 && h.exposure <= 1e6))
+    throw Error(fmt::format("{}: Radiance EXPOSURE {:g} (the product of its EXPOSURE= lines) is outside [1e-6, 1e6]",
+                            name, h.exposure));
   if (!nextLine(data, size, pos, line))
     throw Error(name + ": truncated Radiance header (no resolution line)");
   const std::string_view res = trimmed(line);

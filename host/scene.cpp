@@ -363,7 +363,7 @@ bool usesBvh(const Scene& scene) {
 template <class Limit, class Leaf>
 void traverseBvh(const Bvh& bvh, const Ray& ray, Limit limit, Leaf leaf) {
   const glm::vec3 inv = 1.0f / ray.dir;
-  uint32_t stack[64];
+  uint32_t stack[kBvhMaxDepth];
   int size = 0;
   uint32_t node = 0;
   for (;;) {

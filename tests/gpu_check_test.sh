@@ -12,10 +12,14 @@ passes=0
 ok() { passes=$((passes + 1)); }
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
-if ! "$build/htrender" info >/dev/null 2>&1; then
-  echo "gpu_check: no Vulkan device here; skipped"
+# The device --device gpu uses, as tools/gpu-check.sh picks it.
+info=$("$build/htrender" info 2>/dev/null)
+index=$(printf '%s\n' "$info" | sed -nE 's/^--device gpu( and --device auto)? uses? \[([0-9]+)\].*/\2/p')
+if [ -z "$index" ]; then
+  echo "gpu_check: no usable Vulkan device here; skipped"
   exit 77
 fi
+type=$(printf '%s\n' "$info" | awk -v i="[$index]" '$1 == i {getline; print $2; exit}' | tr -d ,)
 small=(env WIDTH=32 HEIGHT=16 SPP=4 REF_SPP=64 RUNS=1 BUILD_DIR="$build" OUT="$tmp/out")
 if "${small[@]}" ANY_DEVICE=1 "$src/tools/gpu-check.sh" >"$tmp/log" 2>&1; then
   ok
@@ -44,7 +48,6 @@ else
 fi
 
 # Without ANY_DEVICE, a device that is not a discrete GPU is refused in one line.
-type=$("$build/htrender" info | awk '/^  \[/ {getline; print $2; exit}' | tr -d ,)
 if [ "$type" != "discrete" ]; then
   if "${small[@]}" "$src/tools/gpu-check.sh" >"$tmp/log" 2>"$tmp/err"; then
     fail "gpu-check.sh took a $type device"

@@ -108,7 +108,7 @@ TEST(Bvh, EverySphereOnceInBoxesThatHoldIt) {
     }
   }
   for (int c : seen) ASSERT_EQ(c, 1);
-  EXPECT_LT(maxDepth, 64);  // the traversal's stack
+  EXPECT_LT(maxDepth, kBvhMaxDepth);  // the traversal's stack
 }
 
 TEST(Bvh, HitsEqualTheLinearScan) {
@@ -129,6 +129,22 @@ TEST(Bvh, DegenerateSetsEqualTheLinearScan) {
   for (int x = 0; x < 12; ++x)
     for (int z = 0; z < 12; ++z) grid.push_back({glm::vec3(2.0f * float(x), 0.0f, 2.0f * float(z)), 1.0f, x + z});
   for (auto* set : {&same, &line, &grid}) expectSameHits(withSpheres(*set), rng, 20000);
+}
+
+// Centres too far apart or too close together for a float bin scale: the
+// build splits at the median instead (and writes nothing out of bounds).
+TEST(Bvh, ExtremeCentresBuild) {
+  std::vector<Sphere> far, near;
+  for (int i = 0; i < 9; ++i) far.push_back({glm::vec3(i == 0 ? -3e38f : i == 1 ? 3e38f : float(i), 0.0f, 0.0f), 1.0f, i});
+  for (int i = 0; i < 9; ++i) near.push_back({glm::vec3(i % 2 ? 1e-39f : 0.0f, 0.0f, 0.0f), 0.5f, i});
+  for (auto* set : {&far, &near}) {
+    const Bvh bvh = buildBvh(*set);
+    std::vector<int> seen(set->size(), 0);
+    for (uint32_t i : bvh.order) ++seen[i];
+    for (int c : seen) EXPECT_EQ(c, 1);
+  }
+  std::mt19937 rng(3);
+  expectSameHits(withSpheres(near), rng, 2000);
 }
 
 // A scene from a file gets its BVH; scenes whose spheres changed count

@@ -123,6 +123,10 @@ TEST(HdrIo, BadFilesGetOneLineErrors) {
   RgbeFile exposure = testMap(8, 2);
   exposure.headerLines = {"EXPOSURE=-1"};
   EXPECT_NE(errorOf(ht::test::encodeRgbeFile(exposure)).find("EXPOSURE must be a positive number"), std::string::npos);
+  exposure.headerLines = {"EXPOSURE=1e39"};
+  EXPECT_NE(errorOf(ht::test::encodeRgbeFile(exposure)).find("is outside [1e-6, 1e6]"), std::string::npos);
+  exposure.headerLines = {"EXPOSURE=1e-5", "EXPOSURE=1e-5"};
+  EXPECT_NE(errorOf(ht::test::encodeRgbeFile(exposure)).find("EXPOSURE 1e-10 (the product"), std::string::npos);
 
   EXPECT_NE(errorOf(withResolution("+Y 4 +X 16")).find("unsupported Radiance orientation \"+Y 4 +X 16\""),
             std::string::npos);

@@ -191,8 +191,11 @@ def reference(args, scene, outdir):
     a, b = outdir / f"{ref.stem}-a.exr", outdir / f"{ref.stem}-b.exr"
     device = args.ref_device
     extra = sampler + (args.extra.split() if device != "cpu" else [])
-    sa = render(args, scene, args.ref_method, half, 1000001, a, device, extra)
-    render(args, scene, args.ref_method, half, 2000003, b, device, extra)
+    try:
+        sa = render(args, scene, args.ref_method, half, 1000001, a, device, extra)
+        render(args, scene, args.ref_method, half, 2000003, b, device, extra)
+    except RenderRefused as e:
+        sys.exit(f"bench: the reference on {device}: {e}")
     average_exr(args, a, b, ref)
     # Each half has error e, their difference sqrt(2) e, their mean e / sqrt(2).
     diff = compare(args, a, b)
