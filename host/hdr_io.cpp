@@ -74,9 +74,8 @@ bool parseDimension(std::string_view s, long long& value) {
 // (2, 2, width); otherwise each is the mark and, per channel, runs
 // (128 + n, value) and dumps (n, n bytes) that fill the width exactly.
 void checkScanlines(const uint8_t* data, uint64_t size, int width, int height, const std::string& name) {
-  auto truncated = [&](uint64_t need) {
-    return Error(fmt::format("{}: truncated Radiance .hdr file ({} bytes of scanlines cannot hold {}x{} pixels{})", name,
-                             size, width, height, need ? fmt::format(", {} needed", need) : ""));
+  auto endsEarly = [&](int y) {
+    return Error(fmt::format("{}: truncated Radiance .hdr file (the scanlines end early, in row {})", name, y));
   };
   const bool canRunLength = width >= 8 && width < 32768;
   auto marked = [&](uint64_t at) {
@@ -84,12 +83,14 @@ void checkScanlines(const uint8_t* data, uint64_t size, int width, int height, c
   };
   if (!canRunLength || size < 4 || !marked(0)) {
     const uint64_t need = 4 * uint64_t(width) * uint64_t(height);
-    if (size < need) throw truncated(need);
+    if (size < need)
+      throw Error(fmt::format("{}: truncated Radiance .hdr file ({} bytes of scanlines cannot hold {}x{} pixels, {} "
+                              "needed)", name, size, width, height, need));
     return;
   }
   uint64_t at = 0;
   for (int y = 0; y < height; ++y) {
-    if (size - at < 4) throw Error(fmt::format("{}: truncated Radiance .hdr file (the scanlines end early, in row {})", name, y));
+    if (size - at < 4) throw endsEarly(y);
     if (!marked(at))
       throw Error(fmt::format("{}: unsupported Radiance .hdr file (row {} is flat after run-length rows)", name, y));
     if ((int(data[at + 2]) << 8 | int(data[at + 3])) != width)
@@ -98,15 +99,13 @@ void checkScanlines(const uint8_t* data, uint64_t size, int width, int height, c
     at += 4;
     for (int c = 0; c < 4; ++c)
       for (int x = 0; x < width;) {
-        if (at >= size)
-          throw Error(fmt::format("{}: truncated Radiance .hdr file (the scanlines end early, in row {})", name, y));
+        if (at >= size) throw endsEarly(y);
         const int count = data[at++];
         const int n = count > 128 ? count - 128 : count;
         const uint64_t bytes = count > 128 ? 1 : uint64_t(n);
         if (n == 0 || n > width - x)
           throw Error(fmt::format("{}: corrupt Radiance .hdr file (bad run-length data in row {})", name, y));
-        if (size - at < bytes)
-          throw Error(fmt::format("{}: truncated Radiance .hdr file (the scanlines end early, in row {})", name, y));
+        if (size - at < bytes) throw endsEarly(y);
         at += bytes;
         x += n;
       }
@@ -180,22 +179,17 @@ HdrHeader parseHeader(const uint8_t* data, size_t size, uint64_t fileSize, const
   return h;
 }
 
-// stb_image's input: a canonical header, then the file's scanlines. A read
-// asked for after the last byte means the scanlines end early.
+// stb_image's input: a canonical header, then the file's scanlines (which
+// checkScanlines has found complete).
 struct Source {
   std::string header;
   const uint8_t* data = nullptr;
   size_t size = 0;
   size_t pos = 0;  // over header + data
-  bool overrun = false;
 
   size_t total() const { return header.size() + size; }
   static int read(void* user, char* out, int n) {
     Source& s = *static_cast<Source*>(user);
-    if (s.pos >= s.total()) {
-      s.overrun = true;
-      return 0;
-    }
     int done = 0;
     while (done < n && s.pos < s.total()) {
       if (s.pos < s.header.size()) {
@@ -234,15 +228,10 @@ ImageRGB decode(const uint8_t* data, size_t size, const std::string& name) {
   int w = 0, hgt = 0, comp = 0;
   std::unique_ptr<float, void (*)(void*)> pixels(stbi_loadf_from_callbacks(&callbacks, &src, &w, &hgt, &comp, 3),
                                                  &stbi_image_free);
-  if (src.overrun) throw Error(name + ": truncated Radiance .hdr file (the scanlines end early)");
   if (!pixels) {
     const char* why = stbi_failure_reason();
     if (why && std::strcmp(why, "outofmem") == 0) throw Error(name + ": out of memory reading the Radiance .hdr file");
-    const std::string reason = why ? why : "";
-    throw Error(fmt::format("{}: corrupt Radiance .hdr file ({})", name,
-                            reason == "corrupt"                           ? "bad run-length data"
-                            : reason == "invalid decoded scanline length" ? "a scanline's length is not the image's width"
-                                                                          : "undecodable scanlines"));
+    throw Error(fmt::format("{}: corrupt Radiance .hdr file ({})", name, why ? why : "undecodable scanlines"));
   }
   if (w != h.width || hgt != h.height) throw Error(name + ": corrupt Radiance .hdr file (size changed while decoding)");
   ImageRGB image;

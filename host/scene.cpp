@@ -360,36 +360,39 @@ bool usesBvh(const Scene& scene) {
 
 // Visits the BVH's leaves whose boxes the ray enters before `limit()`, in
 // depth-first order, the nearer child first; `leaf` returns true to stop.
+// A child is tested once when its parent is visited, a pending one again
+// when it is taken up (the limit may have shrunk meanwhile).
 template <class Limit, class Leaf>
 void traverseBvh(const Bvh& bvh, const Ray& ray, Limit limit, Leaf leaf) {
   const glm::vec3 inv = 1.0f / ray.dir;
   uint32_t stack[kBvhMaxDepth];
   int size = 0;
   uint32_t node = 0;
+  float enter;
+  if (!rayBox(bvh.nodes[0], ray.origin, inv, limit(), enter)) return;
   for (;;) {
     const BvhNode& n = bvh.nodes[node];
-    float enter;
-    if (rayBox(n, ray.origin, inv, limit(), enter)) {
-      if (n.count > 0) {
-        if (leaf(n)) return;
-      } else {
-        const uint32_t left = node + 1, right = n.first;
-        float tl, tr;
-        const bool hl = rayBox(bvh.nodes[left], ray.origin, inv, limit(), tl);
-        const bool hr = rayBox(bvh.nodes[right], ray.origin, inv, limit(), tr);
-        if (hl && hr) {
-          node = tl <= tr ? left : right;
-          stack[size++] = tl <= tr ? right : left;
-          continue;
-        }
-        if (hl || hr) {
-          node = hl ? left : right;
-          continue;
-        }
+    if (n.count > 0) {
+      if (leaf(n)) return;
+    } else {
+      const uint32_t left = node + 1, right = n.first;
+      float tl, tr;
+      const bool hl = rayBox(bvh.nodes[left], ray.origin, inv, limit(), tl);
+      const bool hr = rayBox(bvh.nodes[right], ray.origin, inv, limit(), tr);
+      if (hl && hr) {
+        node = tl <= tr ? left : right;
+        stack[size++] = tl <= tr ? right : left;
+        continue;
+      }
+      if (hl || hr) {
+        node = hl ? left : right;
+        continue;
       }
     }
-    if (size == 0) return;
-    node = stack[--size];
+    do {
+      if (size == 0) return;
+      node = stack[--size];
+    } while (!rayBox(bvh.nodes[node], ray.origin, inv, limit(), enter));
   }
 }
 
