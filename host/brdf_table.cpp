@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "sampling.h"
+#include "error.h"
 
 namespace ht {
 namespace {
@@ -122,6 +123,12 @@ float BrdfTable::average(float thetaO, const glm::vec3& wi) const {
     return averages_[(size_t(k) * kTheta + std::clamp(a, 0, kTheta - 1)) * kPhi + std::clamp(b, 0, kPhi - 1)];
   };
   return (1 - fx) * ((1 - fy) * at(i, j) + fy * at(i, j + 1)) + fx * ((1 - fy) * at(i + 1, j) + fy * at(i + 1, j + 1));
+}
+
+const BrdfTable& BrdfTables::at(size_t material) const {
+  if (material >= perMaterial.size() || !perMaterial[material])
+    throw Error("internal: BRDF table used but not prepared for this material");
+  return *perMaterial[material];
 }
 
 }  // namespace ht

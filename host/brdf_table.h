@@ -10,7 +10,9 @@
 // interpolated bilinearly from the 4 cells around its centre.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -45,6 +47,13 @@ class BrdfTable {
   std::vector<float> averages_;  // per thetaO bin, per cell centre
 
   float maxAt(int level, int k, int it, int ip) const;
+};
+
+// ht*'s own table with tabulated bounds: one per scene material, in the scene's order.
+struct BrdfTables {
+  std::vector<std::shared_ptr<const BrdfTable>> perMaterial;
+  // Throws an internal ht::Error for a material without its table.
+  const BrdfTable& at(size_t material) const;
 };
 
 }  // namespace ht

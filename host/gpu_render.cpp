@@ -1,5 +1,6 @@
-// The GPU renderer proper: device, pipelines, the scene's upload, tiles, batches,
-// timestamps and read-back (each method family's part: gpu_methods.cpp).
+// The GPU renderer: device, pipelines, the scene's upload, tiles, batches,
+// timestamps and read-back; each method's part through its spec's
+// GpuSupport (method.h) and its GpuMethodState (gpu_method.h).
 #include "gpu_render.h"
 #include "gpu_render_impl.h"
 
@@ -10,7 +11,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <optional>
 
@@ -28,8 +31,6 @@
 
 namespace ht {
 namespace {
-
-using namespace ht::gpu_detail;
 
 // Directions per dispatch: bounds the time of one dispatch (about 1 s on
 // lavapipe with 2 cores for mis); a GPU takes 16 times more, so that a
@@ -88,29 +89,38 @@ GpuDeviceInfo toInfo(const vk::PhysicalDeviceInfo& d) {
 // Batches a submission holds, at most.
 constexpr uint64_t kBatchesPerSubmission = 64;
 
-}  // namespace
+static_assert(uint32_t(SamplerKind::Independent) == HT_SAMPLER_INDEPENDENT &&
+              uint32_t(SamplerKind::Stratified) == HT_SAMPLER_STRATIFIED);
+static_assert(int(MaterialType::Lambert) == HT_MATERIAL_LAMBERT && int(MaterialType::Phong) == HT_MATERIAL_PHONG &&
+              int(MaterialType::Ggx) == HT_MATERIAL_GGX);
 
-namespace gpu_detail {
+// Loop iterations one pixel may spend in one dispatch, a quarter of what
+// llvmpipe allows an invocation in all (GpuPixelState).
+constexpr uint64_t kLoopIterationsPerBatch = 16384;
 
-// Uploads `count` elements of `elementSize` bytes in chunks of
-// `chunkElements`, each its own buffer; writes their addresses.
-void uploadChunked(vk::Context& ctx, const void* data, uint64_t count, size_t elementSize, uint64_t chunkElements,
-                   std::vector<vk::Buffer>& buffers, uint64_t* addresses, const char* what) {
-  const uint64_t chunks = (count + chunkElements - 1) / chunkElements;
-  if (chunks > HT_MAX_CHUNKS)
-    throw Error(fmt::format("{}: {} elements exceed the GPU path's {} chunks of {}", what, count, HT_MAX_CHUNKS,
-                            chunkElements));
-  for (uint64_t c = 0; c < chunks; ++c) {
-    const uint64_t first = c * chunkElements;
-    const uint64_t n = std::min(chunkElements, count - first);
-    vk::Buffer b(ctx, n * elementSize, vk::MemoryUse::DeviceLocal);
-    b.upload(static_cast<const char*>(data) + first * elementSize, n * elementSize);
-    addresses[c] = b.address();
-    buffers.push_back(std::move(b));
-  }
+// Samples (ht*: traversal steps) per pixel and dispatch, from the spec's
+// rough count of the loop iterations each costs. Only the first guess: a
+// dispatch whose loops were cut short makes the renderer halve it and start
+// the tile again.
+uint32_t firstBatchLimit(const RenderSettings& s, int envOrder, size_t shapes) {
+  const GpuSupport& g = *methodInfo(s.method).gpu;
+  const uint64_t cost = g.loopCost ? g.loopCost(s, envOrder, shapes) : gpuDescentCost(envOrder, shapes);
+  return uint32_t(std::clamp<uint64_t>(kLoopIterationsPerBatch / std::max<uint64_t>(cost, 1), 1, 1u << 20));
 }
 
-}  // namespace gpu_detail
+// Directions a pixel draws, roughly.
+uint64_t directionsPerPixel(const RenderSettings& s) {
+  const GpuSupport& g = *methodInfo(s.method).gpu;
+  return g.directionsPerPixel ? g.directionsPerPixel(s) : uint64_t(std::max(s.spp, 1));
+}
+
+bool usesBrdfTable(const RenderSettings& s) {
+  const GpuSupport& g = *methodInfo(s.method).gpu;
+  return g.brdfTable && g.brdfTable(s);
+}
+
+}  // namespace
+
 
 std::vector<GpuDeviceInfo> listGpuDevices() {
   std::vector<GpuDeviceInfo> list;
@@ -169,7 +179,7 @@ void GpuRenderer::Impl::usePipeline(Method method, bool brdfTable) {
     return;
   const uint32_t specialization[] = {uint32_t(method), texels ? 1u : 0u, capSlots, brdfTable ? 1u : 0u};
   shaderName =
-      fmt::format("{}.{}.spv", familyShader(methodInfo(method).family), usesFloat64(method) ? "fp64" : "fp32");
+      fmt::format("{}.{}.spv", methodInfo(method).gpu->shader, usesFloat64(method) ? "fp64" : "fp32");
   pipeline.emplace(ctx, (std::filesystem::path(shaderDir) / shaderName).string(), kBindings,
                    uint32_t(sizeof(GpuPush)), std::array<uint32_t, 3>{kWorkgroupSize, kWorkgroupSize, 1},
                    specialization);
@@ -236,11 +246,6 @@ void GpuRenderer::setScene(const Scene& scene) {
   for (auto& [binding, t] : m.texelBuffers) t.buffer = nullptr;
   m.texelBuffers[HT_BINDING_RADIANCE_TEXELS].buffer = &m.chunks[first[0]];
   m.texelBuffers[HT_BINDING_TREE_AVG_TEXELS].buffer = &m.chunks[first[1]];
-  std::copy(std::begin(gs.treeAvg), std::end(gs.treeAvg), m.envTreeAvg);
-  m.envTreeAvgTexels = &m.chunks[first[1]];
-  m.compensated.reset();
-  m.compensatedBuffers.clear();
-  m.samplingCompensated = false;
   m.texelBuffers[HT_BINDING_TREE_MAX_TEXELS].buffer = &m.chunks[first[2]];
 
   // The camera basis exactly as cameraRay (host/scene.cpp) computes it.
@@ -255,7 +260,6 @@ void GpuRenderer::setScene(const Scene& scene) {
   gs.tanHalfFov = std::tan(0.5f * c.fovY * kPi / 180.0f);
   gs.envOrder = uint32_t(env.order);
   gs.envHasLight = env.hasLight() ? 1u : 0u;
-  m.envHasLight = gs.envHasLight;
   gs.envCosYaw = env.cosYaw;
   gs.envSinYaw = env.sinYaw;
   const double solidAngle = env.pixelSolidAngle();
@@ -281,20 +285,13 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.planes = uploadArray(ctx, planes);
   m.bindScene();
   m.scene = gs;
+  m.sceneFields = gs;
+  m.sceneTexels = m.texelBuffers;
+  m.boundTexels = m.texelBuffers;
   m.envOrder = env.order;
   m.materialCount = scene.materials.size();
   m.occluders = scene.spheres.size() + scene.planes.size();
-  m.geometry = nullptr;
-  m.geometryBuffers.clear();
-  m.brdfTables.clear();
-  m.brdfBuffer = {};
-  m.tsis = nullptr;
-  m.tsisBuffer = {};
-  m.frontierColours = nullptr;
-  m.frontierBinsBuffer = {};
-  m.frontierChromaBuffers.clear();
-  m.frontierCentroidBuffers.clear();
-  m.frontierBuffers.clear();
+  m.states.clear();
   m.hostScene = &scene;
   m.hasScene = true;
 }
@@ -306,7 +303,7 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
                             methodName(s.method)));
   if (precision == GpuPrecision::Fp64 && !ctx.float64)
     throw Error(fmt::format("--gpu-precision fp64 needs shaderFloat64, which {} lacks", info.name));
-  if (methodInfo(s.method).gpuFloat64 && !usesFloat64(s.method))
+  if (methodInfo(s.method).gpu->float64 && !usesFloat64(s.method))
     throw Error(fmt::format("method {} needs shaderFloat64 on the GPU ({} has none, or --gpu-precision is fp32); "
                             "use --device cpu", methodName(s.method), info.name));
 }
@@ -315,8 +312,9 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
 // draws at most directionsPerDispatch directions (and its scratch takes at
 // most scratchBudget); their buffers.
 std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettings& s) {
-  uint32_t side = std::min(maxTileSide, methodTileSide(s));
-  const uint64_t scratch = scratchBytesPerPixel(s);
+  uint32_t side = std::min(maxTileSide, methodInfo(s.method).gpu->maxTileSide);
+  GpuMethodState* state = methodState(s.method);
+  const uint64_t scratch = state ? state->scratchBytesPerPixel(s) : 0;
   while (side > kWorkgroupSize && uint64_t(side) * side * directionsPerPixel(s) > directionsPerDispatch(ctx.info))
     side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
   while (scratch > 0 && side > kWorkgroupSize && uint64_t(side) * side * scratch > scratchBudget(ctx.info))
@@ -339,7 +337,11 @@ std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettin
     pipeline->setBuffer(HT_BINDING_PIXELS, pixels);
   }
   deviceBuffer(pixelState, tilePixels * sizeof(GpuPixelState));
-  prepareScratch(s, tileW, tileH, deviceBuffer);
+  if (state) {
+    const std::function<bool(vk::Buffer&, VkDeviceSize)> makeBuffer = deviceBuffer;
+    GpuTileContext tile{ctx, tileW, tileH, makeBuffer, recordHtSamples};
+    state->prepareScratch(tile, s);
+  }
   if (!fresh.empty())
     ctx.submitAndWait([&](VkCommandBuffer cmd) {
       for (vk::Buffer* b : fresh) ctx.fn.vkCmdFillBuffer(cmd, b->handle(), 0, VK_WHOLE_SIZE, 0);
@@ -354,7 +356,6 @@ std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettin
 void GpuRenderer::Impl::warmPipeline(const RenderSettings& s) {
   if (pipelineRan) return;
   GpuPush push = tilePush(s, 0, 0, 0, 0);
-  bindScratch(s, push);
   ctx.submitAndWait([&](VkCommandBuffer cmd) { pipeline->dispatch(cmd, &push, 1, 1); });
   pipelineRan = true;
 }
@@ -415,12 +416,12 @@ void GpuRenderer::Impl::renderTile(const RenderSettings& s, GpuPush& push, uint3
   const size_t tilePixels = size_t(push.tileWidth) * push.tileHeight;
   const auto* px = static_cast<const GpuPixel*>(pixelsHost.mapped());
   const uint64_t spp = uint64_t(std::max(s.spp, 1));
-  const bool htMethod = methodInfo(s.method).family == Family::Ht;
+  const GpuSupport& g = *methodInfo(s.method).gpu;
   for (uint32_t batch = 0;;) {
     // The sampling methods need ceil(spp / limit) batches; HT's traversal
-    // takes some 40 steps per sample, read back to see when it is done.
-    const uint64_t expected = htMethod ? (40 * spp + 400 + limit - 1) / limit
-                                       : (spp + limit - 1) / limit;
+    // takes some steps per sample (GpuSupport::stepsPerSample), read back
+    // to see when it is done.
+    const uint64_t expected = (g.stepsPerSample * spp + g.fixedSteps + limit - 1) / limit;
     // Past them, half as many again as have run: a finished pixel returns at
     // once from a batch, so the batches after the slowest one cost little.
     const uint64_t wanted = batch < expected ? expected - batch : batch / 2;
@@ -451,7 +452,7 @@ void GpuRenderer::Impl::renderTile(const RenderSettings& s, GpuPush& push, uint3
   }
 }
 
-// The finished tile's pixels, counters and (ht*, when asked) first samples.
+// The finished tile's pixels and counters, and what its method reads back.
 void GpuRenderer::Impl::readTile(const RenderSettings& s, const GpuPush& push, GpuRenderResult& out) {
   RenderResult& r = out.result;
   const auto* px = static_cast<const GpuPixel*>(pixelsHost.mapped());
@@ -465,21 +466,63 @@ void GpuRenderer::Impl::readTile(const RenderSettings& s, const GpuPush& push, G
       r.counters.htNodes += p.htNodes;
       if (s.pixelCounts) r.pixelDirections[size_t(push.tileY + y) * s.width + push.tileX + x] = p.directions;
     }
-  if (methodInfo(s.method).family != Family::Ht || !recordHtSamples) return;
-  if (out.htSamples.empty()) out.htSamples.resize(size_t(s.width) * s.height);
-  htSampleLog.invalidate();
-  const auto* log = static_cast<const GpuHtSample*>(htSampleLog.mapped());
-  for (uint32_t y = 0; y < push.tileHeight; ++y)
-    for (uint32_t x = 0; x < push.tileWidth; ++x) {
-      const size_t i = size_t(y) * push.tileWidth + x;
-      const uint32_t n = std::min<uint32_t>(px[i].directions, HT_SAMPLE_LOG_SLOTS);
-      auto& samples = out.htSamples[size_t(push.tileY + y) * s.width + push.tileX + x];
-      for (uint32_t k = 0; k < n; ++k) {
-        const GpuHtSample& g = log[i * HT_SAMPLE_LOG_SLOTS + k];
-        samples.push_back({g.dir, g.h, uint64_t(g.candidate.x) | uint64_t(g.candidate.y) << 32, int(g.level),
-                           g.weight});
-      }
-    }
+  if (GpuMethodState* state = methodState(s.method)) state->readTile(s, push, px, out);
+}
+
+bool gpuSupportsMethod(Method m) { return methodInfo(m).gpu != nullptr; }
+
+std::string gpuSceneLimit(Method method, size_t occluders) {
+  const GpuSupport* g = methodInfo(method).gpu;
+  return g && g->sceneLimit ? g->sceneLimit(method, occluders) : std::string();
+}
+
+GpuMethodState* GpuRenderer::Impl::methodState(Method method) {
+  const GpuSupport& g = *methodInfo(method).gpu;
+  if (!g.makeState) return nullptr;
+  std::unique_ptr<GpuMethodState>& state = states[g.makeState];
+  if (!state) state = g.makeState();
+  return state.get();
+}
+
+// The scene's fields and views as setScene left them, with the method's
+// part filled in: uploaded and bound where they changed (its tables
+// uploaded at their first render, and again when they are other tables).
+void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables& t) {
+  if (const std::string limit = gpuSceneLimit(s.method, occluders); !limit.empty()) throw Error(limit);
+  GpuScene next = sceneFields;
+  texelBuffers = sceneTexels;
+  if (GpuMethodState* state = methodState(s.method)) {
+    GpuUploadContext c{ctx, *hostScene, next, texelBuffers, usesFloat64(s.method), envOrder, materialCount};
+    state->upload(c, s, t);
+  }
+  bool texelsChanged = false;
+  for (const auto& [binding, b] : texelBuffers) texelsChanged = texelsChanged || boundTexels[binding].buffer != b.buffer;
+  if (std::memcmp(&next, &scene, sizeof(GpuScene)) == 0 && !texelsChanged) return;
+  scene = next;
+  sceneBuffer.upload(&scene, sizeof(scene));
+  bindScene();
+  boundTexels = texelBuffers;
+}
+
+GpuPush GpuRenderer::Impl::tilePush(const RenderSettings& s, uint32_t x, uint32_t y, uint32_t tileW, uint32_t tileH) {
+  GpuPush push{};
+  push.width = uint32_t(s.width);
+  push.height = uint32_t(s.height);
+  push.tileX = x;
+  push.tileY = y;
+  push.tileWidth = std::min(tileW, uint32_t(s.width) - x);
+  push.tileHeight = std::min(tileH, uint32_t(s.height) - y);
+  push.method = uint32_t(s.method);
+  push.spp = uint32_t(std::max(s.spp, 1));
+  push.seed = s.seed;
+  push.samplerKind = uint32_t(s.options.sampler);
+  push.canaryLoops = 2;
+  push.canaryZero = 0;
+  push.pixelState = pixelState.address();
+  const GpuSupport& g = *methodInfo(s.method).gpu;
+  if (g.push) g.push(s, push);
+  if (GpuMethodState* state = methodState(s.method)) state->bindScratch(s, push);
+  return push;
 }
 
 GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
@@ -517,8 +560,7 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s, const MethodTables&
   uint32_t limit = m.batchLimit > 0 ? m.batchLimit : firstBatchLimit(s, m.envOrder, m.occluders);
   for (uint32_t y = 0; y < uint32_t(s.height); y += tileH)
     for (uint32_t x = 0; x < uint32_t(s.width); x += tileW) {
-      GpuPush push = tilePush(s, x, y, tileW, tileH);
-      m.bindScratch(s, push);
+      GpuPush push = m.tilePush(s, x, y, tileW, tileH);
       m.renderTile(s, push, limit, out);
       m.readTile(s, push, out);
       ++out.tiles;

@@ -182,7 +182,7 @@ HtPoint::HtPoint(const Scene& sc, const ShadingPoint& sp, const HtOptions& opt, 
   boundTerms_.oneMinusF0 = 1.0f - boundTerms_.f0;
   boundTerms_.fourCosO = 4.0f * woLocal.z;
   if (options.brdfTable) {
-    table = &tables.brdfTable(sc, sp.material);
+    table = &tables.own<BrdfTables>().at(size_t(sp.material - sc.materials.data()));
     thetaO = std::acos(std::clamp(woLocal.z, -1.0f, 1.0f));
     glm::vec3 tangent = wo - glm::dot(wo, n) * n;
     tableX = glm::length(tangent) > 1e-6f ? glm::normalize(tangent) : frame.s;

@@ -63,7 +63,7 @@ glm::vec3 estimateHtFrontier(const Scene& scene, const ShadingPoint& sp, const F
   htOptions.budgetRefinements = -1;
   const HtPoint point(scene, sp, htOptions, tables);
   thread_local Frontier frontier;
-  frontier.build(point, sp, options, n, tables.colours());
+  frontier.build(point, sp, options, n, tables.own<FrontierColours>());
   if (!frontier.shared()) counters.htNodes += uint64_t(12 + 4 * frontier.splits());
   if (!(frontier.totalMass() > 0.0)) return glm::vec3(0.0f);
   const Shading sh(scene, sp, counters);

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <optional>
 #include <string>
 #include <thread>
@@ -23,7 +24,6 @@
 #include "render.h"
 #include "scene.h"
 #include "system_memory.h"
-#include "wis.h"
 
 namespace fs = std::filesystem;
 using namespace ht;
@@ -43,17 +43,27 @@ struct RenderOptions {
   uint32_t seed = 1;
   float exposure = 0.0f;
   bool quiet = false;
-  std::string brdfBounds = "analytic";
-  int oracleOrder = 5;
-  int risCandidates = 32;
   bool repairNonFinite = false;
-  int wisOrder = 5;
-  int frontierRefinements = -1;
-  std::string frontierColourControl = "on";
-  std::string htSequence = "sphere";
-  std::string sampler = "stratified";
   std::string maxMemory;
+  // The methods' options (allMethodOptions) by flag: integers, and choices by name.
+  std::map<std::string, int> integers;
+  std::map<std::string, std::string> choices;
 };
+
+// The methods' options as given (or by default).
+MethodOptions methodOptions(const RenderOptions& o) {
+  MethodOptions m;
+  for (const MethodOption* option : allMethodOptions()) {
+    if (option->choices.empty()) {
+      option->set(m, o.integers.at(option->flag));
+      continue;
+    }
+    const std::string& name = o.choices.at(option->flag);
+    for (size_t i = 0; i < option->choices.size(); ++i)
+      if (name == option->choices[i]) option->set(m, int(i));
+  }
+  return m;
+}
 
 double secondsSince(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
@@ -159,8 +169,7 @@ MemoryInputs memoryInputs(const RenderOptions& o, const Scene& scene, Method met
   if (file.is_relative()) file = fs::path(scene.path).parent_path() / file;
   readImageSize(file.string(), mem.inputWidth, mem.inputHeight, &mem.inputDecodeBytes);
   mem.method = method;
-  mem.options.oracleOrder = o.oracleOrder;
-  mem.options.wisOrder = o.wisOrder;
+  mem.options = methodOptions(o);
   mem.width = o.width > 0 ? o.width : scene.width;
   mem.height = o.height > 0 ? o.height : scene.height;
   mem.threads = tbb::info::default_concurrency();
@@ -180,15 +189,7 @@ RenderSettings renderSettings(const RenderOptions& o, const Scene& scene, Method
   rs.width = o.width > 0 ? o.width : scene.width;
   rs.height = o.height > 0 ? o.height : scene.height;
   rs.progress = !o.quiet;
-  rs.options.oracleOrder = o.oracleOrder;
-  rs.options.risCandidates = o.risCandidates;
-  rs.options.wisOrder = o.wisOrder;
-  rs.options.frontierRefinements = o.frontierRefinements;
-  rs.options.frontierColourControl = o.frontierColourControl == "on";
-  rs.options.htSphereSequence = o.htSequence == "sphere";
-  rs.options.sampler = o.sampler == "independent" ? SamplerKind::Independent : SamplerKind::Stratified;
-  rs.options.brdfBounds =
-      o.brdfBounds == "table" ? MethodOptions::BrdfBounds::Table : MethodOptions::BrdfBounds::Analytic;
+  rs.options = methodOptions(o);
   return rs;
 }
 
@@ -201,10 +202,6 @@ nlohmann::json renderStats(const RenderOptions& o, const Scene& scene, const Ren
       {"scene", scene.path},
       {"method", methodName(rs.method)},
       {"spp", rs.spp},
-      {"brdf_bounds", o.brdfBounds},
-      {"ht_sequence", o.htSequence},
-      {"sampler", o.sampler},
-      {"frontier_colour_control", o.frontierColourControl},
       {"width", rs.width},
       {"height", rs.height},
       {"seed", rs.seed},
@@ -226,6 +223,10 @@ nlohmann::json renderStats(const RenderOptions& o, const Scene& scene, const Ren
        {{"parse", t.parse}, {"environment", t.environment}, {"prepare", t.prepare}, {"render", r.seconds}, {"write", t.write}}},
       {"outputs", {o.out, fs::path(o.out).replace_extension(".png").string()}},
   };
+  for (const MethodOption* option : allMethodOptions()) {
+    const int value = option->get(rs.options);
+    stats[option->key] = option->choices.empty() ? nlohmann::json(value) : nlohmann::json(option->choices[value]);
+  }
   // The environment stage split: file read + checks, HEALPix resampling, max/avg tree.
   stats["seconds"]["scene_bvh"] = scene.sphereBvh.buildSeconds;  // part of "parse"
   stats["seconds"]["environment_load"] = scene.environmentStats.loadSeconds;
@@ -372,35 +373,19 @@ void addRenderOptions(CLI::App& r, RenderOptions& o) {
   r.add_option("--out", o.out, "output EXR; the PNG preview goes next to it")->capture_default_str();
   r.add_option("--stats", o.stats, "write timings and counts as JSON");
   r.add_option("--exposure", o.exposure, "PNG preview exposure in stops")->capture_default_str();
-  r.add_option("--sampler", o.sampler,
-                     "per-pixel sample points: Owen-scrambled Sobol' (0,2)-sequences per decision (stratified) "
-                     "or i.i.d. (independent); HT's candidates keep their own sequence")
-      ->check(CLI::IsMember({"stratified", "independent"}))
-      ->capture_default_str();
-  r.add_option("--brdf-bounds", o.brdfBounds, "ht*: BRDF bounds from cones (analytic) or tabulated trees (table)")
-      ->check(CLI::IsMember({"analytic", "table"}))
-      ->capture_default_str();
-  r.add_option("--ht-sequence", o.htSequence, "ht*: one candidate sequence over the sphere or one per face")
-      ->check(CLI::IsMember({"sphere", "faces"}))
-      ->capture_default_str();
-  r.add_option("--oracle-order", o.oracleOrder, "oracle: HEALPix level of the brute-force product")
-      ->check(CLI::Range(0, 10))
-      ->capture_default_str();
-  r.add_option("--ris-candidates", o.risCandidates, "ris: candidates M per resampled sample")
-      ->check(CLI::Range(1, 4096))
-      ->capture_default_str();
-  r.add_option("--wis-order", o.wisOrder,
-                     "wis*: HEALPix order of the sampled product (Nside 2^order, at most the environment's)")
-      ->check(CLI::Range(0, WisPoint::kMaxOrder))
-      ->capture_default_str();
-  r.add_option("--frontier-refinements", o.frontierRefinements,
-                     "ht-frontier: most node splits per shading point (frontier of 12 + 3 x this nodes; -1: 16 + spp, at most 256)")
-      ->check(CLI::Range(-1, 4096))
-      ->capture_default_str();
-  r.add_option("--frontier-colour-control", o.frontierColourControl,
-                     "ht-frontier: the control variate on colour (each table direction's chroma against its exact mean)")
-      ->check(CLI::IsMember({"on", "off"}))
-      ->capture_default_str();
+  // Each method's options (their specs), once per flag.
+  const MethodOptions defaults;
+  for (const MethodOption* option : allMethodOptions()) {
+    if (option->choices.empty()) {
+      int& value = o.integers[option->flag] = option->get(defaults);
+      r.add_option(option->flag, value, option->help)->check(CLI::Range(option->min, option->max))->capture_default_str();
+    } else {
+      std::string& value = o.choices[option->flag] = option->choices[option->get(defaults)];
+      r.add_option(option->flag, value, option->help)
+          ->check(CLI::IsMember(std::vector<std::string>(option->choices.begin(), option->choices.end())))
+          ->capture_default_str();
+    }
+  }
   r.add_flag("--repair-nonfinite", o.repairNonFinite,
                   "set NaN/Inf texels of the environment to 0 with a warning instead of refusing the map");
   r.add_option("--max-memory", o.maxMemory,
@@ -413,7 +398,7 @@ int runMethods() {
   std::printf("%-14s %-11s %-8s %-4s %s\n", "method", "family", "biased", "gpu", "samples");
   for (const MethodInfo& m : allMethods())
     std::printf("%-14s %-11s %-8s %-4s %s\n", m.name, familyName(m.family), m.biased ? "yes" : "no",
-                m.gpu ? (m.gpuFloat64 ? "fp64" : "yes") : "no", m.description);
+                m.gpu ? (m.gpu->float64 ? "fp64" : "yes") : "no", m.description);
   return 0;
 }
 

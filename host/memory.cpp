@@ -12,21 +12,10 @@
 #include "error.h"
 #include "system_memory.h"
 #include "tree.h"
-#include "tsis.h"
-#include "ht_frontier.h"
-#include "wis.h"
-#include "common.h"  // shaders/common.h
 
 namespace ht {
 
 namespace {
-
-bool isHt(Method m) { return methodInfo(m).family == Family::Ht; }
-// The methods that read HT's node geometry on the CPU.
-bool usesHtGeometry(Method m) {
-  const Family f = methodInfo(m).family;
-  return f == Family::Ht || f == Family::Oracle || f == Family::Product;
-}
 
 // Code, libraries and TBB, as measured (peak RSS) rendering a tiny scene.
 constexpr uint64_t kBaseBytes = uint64_t(12) << 20;
@@ -56,30 +45,11 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
                                     (groupPixels * 32 + (uint64_t(in.inputWidth) + 1) * 48));
   const uint64_t trees = add("max/avg trees", nodes * 8);
 
+  // The method's tables, and its part of the GPU's buffers.
+  MethodMemory method;
+  if (const auto memory = methodInfo(in.method).memory) memory(in, method);
   uint64_t tables = 0;
-  if (usesHtGeometry(in.method)) tables += add("HT node geometry", nodes * 20);
-  if ((isHt(in.method) || in.method == Method::HtFrontier) && !in.gpu) tables += add("HT node records", nodes * 32);
-  if (in.method == Method::Oracle) {
-    const int k = std::clamp(in.options.oracleOrder, 0, in.envOrder);
-    tables += add("oracle tables (per thread)", uint64_t(std::max(in.threads, 1)) * MaxAvgTree::levelSize(k) * 40);
-  }
-  if (in.method == Method::Wis || in.method == Method::WisBiased) {
-    const int k = std::clamp(in.options.wisOrder, 0, std::min(in.envOrder, WisPoint::kMaxOrder));
-    tables += add("wis node centres", MaxAvgTree::levelOffset(k + 1) * 12);
-  }
-  if (in.method == Method::HtFrontier) {
-    tables += add("ht-frontier shared tables (per thread, at most)",
-                  uint64_t(std::max(in.threads, 1)) * kFrontierSharedTables * kFrontierSharedTableBytes);
-    tables += add("ht-frontier colour bins, chroma and centroids (and their sums while built)", nodes * 25);
-  }
-  uint64_t compensated = 0;
-  if (in.method == Method::MisCompensated)
-    compensated = tables += add("mis-compensated tree", nodes * 8);
-  uint64_t sat = 0;
-  if (in.method == Method::Tsis) {
-    const uint64_t n = (uint64_t(1) << std::min(in.envOrder, TsisTable::kMaxLevel)) + 1;
-    sat = tables += add("tsis summed-area table", 12 * n * n * 8);
-  }
+  for (const auto& [what, bytes] : method.tables) tables += add(what, bytes);
   // The image, and while writing its PNG the 8-bit copy and the encoded file.
   const uint64_t out = add("image and its encodings", image * (12 + 6));
 
@@ -87,16 +57,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
   if (in.gpu) {
     // The driver with its shader compiler (LLVM in lavapipe), as measured.
     gpu += kVulkanBytes;
-    gpu += radiance + trees + sat + compensated / 2;  // the compensated tree's averages
-    if (isHt(in.method)) {
-      // Geometry; per pixel of a tile its pending samples and recorded leaves.
-      const uint64_t tile =
-          uint64_t(std::min(in.width, HT_MAX_TILE_SIDE)) * uint64_t(std::min(in.height, HT_MAX_TILE_SIDE));
-      gpu += nodes * 20 + tile * HT_QUEUE_BYTES;
-    }
-    // ht-frontier: geometry, colour bins, chroma and centroids; a tile's tables (at most GpuRenderer's
-    // kCpuScratchBytes on a CPU device, whose buffers are host memory; a GPU's larger scratch is its own).
-    if (in.method == Method::HtFrontier) gpu += nodes * 27 + (uint64_t(96) << 20);
+    gpu += radiance + trees + method.gpu;
     gpu += image * 12;  // the readback of the tiles, gathered
     add("GPU buffers", gpu);
   }
@@ -104,6 +65,10 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
   e.loadPeak = base + input + std::max(decode, radiance + luminance + resample + trees);
   e.renderPeak = base + radiance + trees + tables + out + gpu;
   return e;
+}
+
+void MethodMemory::table(const char* what, uint64_t bytes) {
+  if (bytes > 0) tables.emplace_back(what, bytes);
 }
 
 void checkMemory(const MemoryEstimate& e, uint64_t limit, const std::string& limitSource) {

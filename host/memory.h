@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include "integrator.h"
+#include "method.h"
 
 namespace ht {
 

@@ -40,7 +40,8 @@
 #define HT_HT_VEC3_CHUNK_SHIFT 23   // HT node centres (vec3): 96 MiB
 #define HT_HT_VEC2_CHUNK_SHIFT 23   // HT node cos/sin radius (vec2): 64 MiB
 
-// Method numbers: the values of ht::Method (host/integrator.h).
+// Method numbers: the values of ht::Method (below; host/methods/registry.cpp
+// lists each method's spec in this order).
 #define HT_METHOD_UNIFORM 0
 #define HT_METHOD_COSINE 1
 #define HT_METHOD_ENV 2
@@ -138,6 +139,27 @@
 
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+
+namespace ht {
+enum class Method : uint32_t {
+  Uniform = HT_METHOD_UNIFORM,
+  Cosine = HT_METHOD_COSINE,
+  Env = HT_METHOD_ENV,
+  Brdf = HT_METHOD_BRDF,
+  Mis = HT_METHOD_MIS,
+  Ht = HT_METHOD_HT,
+  HtVis = HT_METHOD_HT_VIS,
+  HtBiased = HT_METHOD_HT_BIASED,
+  HtVisBiased = HT_METHOD_HT_VIS_BIASED,
+  Oracle = HT_METHOD_ORACLE,
+  Wis = HT_METHOD_WIS,
+  WisBiased = HT_METHOD_WIS_BIASED,
+  Tsis = HT_METHOD_TSIS,
+  Ris = HT_METHOD_RIS,
+  HtFrontier = HT_METHOD_HT_FRONTIER,
+  MisCompensated = HT_METHOD_MIS_COMPENSATED,
+};
+}  // namespace ht
 
 namespace ht::gpu {
 using uint = uint32_t;

@@ -72,7 +72,7 @@ void prepare(const ShadingSetup& s, const FrontierOptions& options, int n, Prepa
   p.htOptions.budgetRefinements = -1;
   p.tables = prepareTables(s.scene, Method::HtFrontier);
   p.point = std::make_unique<HtPoint>(s.scene, p.sp, p.htOptions, p.tables);
-  p.frontier.build(*p.point, p.sp, options, n, p.tables.colours());
+  p.frontier.build(*p.point, p.sp, options, n, p.tables.own<FrontierColours>());
 }
 
 // Every setup's mean over `batches` estimates of n directions, for each n
@@ -347,7 +347,7 @@ TEST(Frontier, CdfOrderGroupsColours) {
     PreparedPoint p;
     prepare(s, FrontierOptions{}, 16, p);
     const FrontierTable& t = p.frontier.table();
-    const std::vector<uint8_t>& bins = p.tables.colours().bins;
+    const std::vector<uint8_t>& bins = p.tables.own<FrontierColours>().bins;
     ASSERT_EQ(t.cdfOrder.size(), t.nodes.size()) << s.name;
     std::vector<bool> seen(t.nodes.size(), false);
     std::tuple<int, uint64_t, uint64_t> last{-1, 0, 0};
