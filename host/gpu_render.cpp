@@ -64,6 +64,8 @@ constexpr vk::BindingLayout kBindings[] = {
     {HT_BINDING_FRONTIER_CHROMA_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
     {HT_BINDING_FRONTIER_CENTROID_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
     {HT_BINDING_FRONTIER_BINS_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_BVH_NODES, 0, sizeof(GpuBvhNode)},
+    {HT_BINDING_BVH_ORDER, 0, sizeof(uint32_t)},
 };
 static_assert(std::size(kBindings) == HT_BINDING_COUNT);
 
@@ -91,6 +93,7 @@ constexpr uint64_t kBatchesPerSubmission = 64;
 
 static_assert(uint32_t(SamplerKind::Independent) == HT_SAMPLER_INDEPENDENT &&
               uint32_t(SamplerKind::Stratified) == HT_SAMPLER_STRATIFIED);
+static_assert(kBvhLeafSize == HT_BVH_LEAF_SIZE);
 static_assert(int(MaterialType::Lambert) == HT_MATERIAL_LAMBERT && int(MaterialType::Phong) == HT_MATERIAL_PHONG &&
               int(MaterialType::Ggx) == HT_MATERIAL_GGX);
 
@@ -197,6 +200,8 @@ void GpuRenderer::Impl::bindScene() {
   pipeline->setBuffer(HT_BINDING_MATERIALS, materials);
   pipeline->setBuffer(HT_BINDING_SPHERES, spheres);
   pipeline->setBuffer(HT_BINDING_PLANES, planes);
+  pipeline->setBuffer(HT_BINDING_BVH_NODES, bvhNodes);
+  pipeline->setBuffer(HT_BINDING_BVH_ORDER, bvhOrder);
   for (auto& [binding, t] : texelBuffers) {
     vk::Buffer* buffer = texels ? t.buffer : nullptr;
     if (!buffer) {
@@ -277,12 +282,25 @@ void GpuRenderer::setScene(const Scene& scene) {
   for (const Sphere& s : scene.spheres) spheres.push_back({s.center, s.radius, uint32_t(s.material)});
   std::vector<GpuPlane> planes;
   for (const Plane& p : scene.planes) planes.push_back({p.point, p.normal, uint32_t(p.material)});
+  // The spheres' BVH where the scene has one (readSceneFile builds it): each
+  // node with the node after its subtree, found from the last node back.
+  const Bvh& bvh = scene.sphereBvh;
+  std::vector<GpuBvhNode> bvhNodes(bvh.spheres == scene.spheres.size() ? bvh.nodes.size() : 0);
+  for (size_t i = bvhNodes.size(); i-- > 0;) {
+    const BvhNode& n = bvh.nodes[i];
+    if (n.count > 7 || n.first >= (1u << 29)) throw Error("internal: a BVH leaf beyond the GPU's node format");
+    bvhNodes[i] = {n.lo, n.count > 0 ? uint32_t(i + 1) : bvhNodes[n.first].skip, n.hi,
+                   n.count > 0 ? n.first << 3 | n.count : 0u};
+  }
+  gs.bvhNodeCount = uint32_t(bvhNodes.size());
 
   m.sceneBuffer = vk::Buffer(ctx, sizeof(GpuScene), vk::MemoryUse::DeviceLocal);
   m.sceneBuffer.upload(&gs, sizeof(gs));
   m.materials = uploadArray(ctx, materials);
   m.spheres = uploadArray(ctx, spheres);
   m.planes = uploadArray(ctx, planes);
+  m.bvhNodes = uploadArray(ctx, bvhNodes);
+  m.bvhOrder = uploadArray(ctx, bvhNodes.empty() ? std::vector<uint32_t>{} : bvh.order);
   m.bindScene();
   m.scene = gs;
   m.sceneFields = gs;
@@ -291,6 +309,10 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.envOrder = env.order;
   m.materialCount = scene.materials.size();
   m.occluders = scene.spheres.size() + scene.planes.size();
+  // What a ray costs, in spheres and planes tested: through the BVH, about
+  // a few leaves' worth per level.
+  const size_t n = scene.spheres.size();
+  m.rayCost = scene.planes.size() + (bvhNodes.empty() ? n : std::min<size_t>(n, 8 + 4 * size_t(std::bit_width(n))));
   m.states.clear();
   m.hostScene = &scene;
   m.hasScene = true;
@@ -471,9 +493,9 @@ void GpuRenderer::Impl::readTile(const RenderSettings& s, const GpuPush& push, G
 
 bool gpuSupportsMethod(Method m) { return methodInfo(m).gpu != nullptr; }
 
-std::string gpuSceneLimit(Method method, size_t occluders) {
+std::string gpuSceneLimit(Method method, const Scene& scene) {
   const GpuSupport* g = methodInfo(method).gpu;
-  return g && g->sceneLimit ? g->sceneLimit(method, occluders) : std::string();
+  return g && g->sceneLimit ? g->sceneLimit(method, scene) : std::string();
 }
 
 GpuMethodState* GpuRenderer::Impl::methodState(Method method) {
@@ -488,7 +510,7 @@ GpuMethodState* GpuRenderer::Impl::methodState(Method method) {
 // part filled in: uploaded and bound where they changed (its tables
 // uploaded at their first render, and again when they are other tables).
 void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables& t) {
-  if (const std::string limit = gpuSceneLimit(s.method, occluders); !limit.empty()) throw Error(limit);
+  if (const std::string limit = gpuSceneLimit(s.method, *hostScene); !limit.empty()) throw Error(limit);
   GpuScene next = sceneFields;
   texelBuffers = sceneTexels;
   if (GpuMethodState* state = methodState(s.method)) {
@@ -557,7 +579,7 @@ GpuRenderResult GpuRenderer::render(const RenderSettings& s, const MethodTables&
   out.tileWidth = int(tileW);
   out.tileHeight = int(tileH);
   int lastReported = -1;
-  uint32_t limit = m.batchLimit > 0 ? m.batchLimit : firstBatchLimit(s, m.envOrder, m.occluders);
+  uint32_t limit = m.batchLimit > 0 ? m.batchLimit : firstBatchLimit(s, m.envOrder, m.rayCost);
   for (uint32_t y = 0; y < uint32_t(s.height); y += tileH)
     for (uint32_t x = 0; x < uint32_t(s.width); x += tileW) {
       GpuPush push = m.tilePush(s, x, y, tileW, tileH);

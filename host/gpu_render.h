@@ -62,9 +62,8 @@ std::vector<GpuDeviceInfo> listGpuDevices();
 int defaultGpuDevice(const std::vector<GpuDeviceInfo>& devices);
 // True for the methods the shaders implement.
 bool gpuSupportsMethod(Method method);
-// Why the GPU path cannot render `method` on a scene of `occluders` spheres
-// and planes; empty where it can.
-std::string gpuSceneLimit(Method method, size_t occluders);
+// Why the GPU path cannot render `method` on `scene`; empty where it can.
+std::string gpuSceneLimit(Method method, const Scene& scene);
 // <directory of the running executable>/shaders.
 std::string shaderDirNextToExecutable();
 

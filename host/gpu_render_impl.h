@@ -46,7 +46,7 @@ struct GpuRenderer::Impl {
   // Per scene.
   bool hasScene = false;
   std::vector<vk::Buffer> chunks;
-  vk::Buffer sceneBuffer, materials, spheres, planes;
+  vk::Buffer sceneBuffer, materials, spheres, planes, bvhNodes, bvhOrder;
   // Per texel binding, its format and the buffer (first chunk) it views,
   // null until that array is uploaded. bindScene gives a binding without a
   // buffer, and every binding when the arrays do not fit texel views
@@ -75,6 +75,7 @@ struct GpuRenderer::Impl {
   int envOrder = 0;
   size_t materialCount = 0;
   size_t occluders = 0;
+  size_t rayCost = 0;  // spheres and planes a ray tests, roughly
   // The methods' uploads and scratch for this scene, one per GpuSupport::makeState.
   std::map<std::unique_ptr<GpuMethodState> (*)(), std::unique_ptr<GpuMethodState>> states;
   bool recordHtSamples = false;

@@ -123,12 +123,15 @@ Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry, int 
   return c;
 }
 
+size_t capSphereCount(const Scene& scene) { return kMaxCaps - std::min(kMaxCaps, scene.planes.size()); }
+
 std::vector<Occluder> occluders(const Scene& scene, const ShadingPoint& sp) {
   const Environment& env = scene.environment;
   std::vector<Occluder> out;
   out.reserve(scene.spheres.size() + scene.planes.size());
   const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
-  for (const Sphere& s : scene.spheres) {
+  for (const uint32_t i : capSpheres(scene, origin, sp.normal, capSphereCount(scene))) {
+    const Sphere& s = scene.spheres[i];
     const glm::vec3 d = s.center - origin;
     const float dist = glm::length(d);
     if (!(dist > 0.0f)) continue;

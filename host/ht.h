@@ -115,9 +115,15 @@ Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry, int 
 inline Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry) {
   return makeCap(axis, angle, geometry, geometry.order + 1);
 }
-// Every sphere and plane as seen from the shading point's shadow-ray origin
-// (offsetRayOrigin): a hit point rounded to just below its own plane would
-// otherwise see the sky as blocked.
+// The caps a shading point keeps at most, spheres' and planes' (the
+// shaders' HT_MAX_CAPS): every plane, and the largest spheres in the rest
+// (capSpheres in scene.h). A sphere left out only leaves density where its
+// shadow rays return 0, so the estimates stay unbiased.
+constexpr size_t kMaxCaps = 16;
+size_t capSphereCount(const Scene& scene);
+// Every plane and the spheres of capSpheres as seen from the shading point's
+// shadow-ray origin (offsetRayOrigin): a hit point rounded to just below its
+// own plane would otherwise see the sky as blocked.
 struct Occluder {
   glm::vec3 axis;      // HEALPix frame
   float sinHalfAngle;  // of the cap it blocks; 1 for a plane's far side

@@ -101,7 +101,7 @@ std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, const Scene& scene,
     why = fmt::format("method {} has no GPU version", methodName(method));
     return nullptr;
   }
-  if (const std::string limit = gpuSceneLimit(method, scene.spheres.size() + scene.planes.size()); !limit.empty()) {
+  if (const std::string limit = gpuSceneLimit(method, scene); !limit.empty()) {
     if (o.device == "gpu") throw Error(limit);
     why = limit.substr(0, limit.rfind(';'));
     return nullptr;

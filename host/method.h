@@ -93,8 +93,8 @@ struct GpuSupport {
   void (*push)(const RenderSettings& s, gpu::GpuPush& push) = nullptr;
   // The shader's HT_SPEC_BRDF_TABLE (null: off).
   bool (*brdfTable)(const RenderSettings& s) = nullptr;
-  // Why it cannot render a scene of `occluders` spheres and planes ("": it can).
-  std::string (*sceneLimit)(Method method, size_t occluders) = nullptr;
+  // Why it cannot render `scene` ("": it can).
+  std::string (*sceneLimit)(Method method, const Scene& scene) = nullptr;
   // Its uploads and scratch (host/gpu_method.h); null: none. Methods with
   // the same factory share one state.
   std::unique_ptr<GpuMethodState> (*makeState)() = nullptr;

@@ -1,6 +1,7 @@
 #include "scene.h"
 
 #include <algorithm>
+#include <numeric>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -358,6 +359,23 @@ bool usesBvh(const Scene& scene) {
   return !scene.sphereBvh.nodes.empty() && scene.sphereBvh.spheres == scene.spheres.size();
 }
 
+// capSpheres' floors on the sines, pass by pass; the last, 0, visits every
+// box that may rank.
+constexpr float kCapFloors[] = {0.2f, 0.05f, 0.0f};
+
+// An upper bound of capRank's sine for any sphere inside the node's box:
+// such a sphere has r <= R, half the box's least extent, and its nearest
+// point lies in the box, at least the box's distance D from `origin`, so
+// r / d <= R / (R + D); enlarged for rounding.
+float capBound(const BvhNode& node, const glm::vec3& origin) {
+  const glm::vec3 extent = node.hi - node.lo;
+  const float r = 0.5f * std::min({extent.x, extent.y, extent.z});
+  const glm::vec3 gap = glm::max(glm::max(node.lo - origin, origin - node.hi), glm::vec3(0.0f));
+  const float dist = glm::length(gap);
+  if (!(dist > 0.0f)) return 1.0f;
+  return std::min(1.0f, r / (r + dist) * 1.001f + 1e-6f);
+}
+
 // Visits the BVH's leaves whose boxes the ray enters before `limit()`, in
 // depth-first order, the nearer child first; `leaf` returns true to stop.
 // A child is tested once when its parent is visited, a pending one again
@@ -479,6 +497,68 @@ bool occluded(const Scene& scene, const glm::vec3& origin, const glm::vec3& dir)
 glm::vec3 offsetRayOrigin(const glm::vec3& p, const glm::vec3& n) {
   float scale = 1.0f + std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)});
   return p + n * (1e-4f * scale);
+}
+
+bool capRank(const Sphere& s, const glm::vec3& origin, const glm::vec3& normal, float& sine) {
+  const glm::vec3 d = s.center - origin;
+  const float dist = glm::length(d);
+  if (!(dist > 0.0f) || !(glm::dot(d, normal) > -s.radius)) return false;
+  sine = std::min(1.0f, s.radius / dist);
+  return true;
+}
+
+std::vector<uint32_t> capSpheres(const Scene& scene, const glm::vec3& origin, const glm::vec3& normal, size_t k) {
+  std::vector<uint32_t> chosen;
+  const size_t n = scene.spheres.size();
+  if (n <= k) {
+    chosen.resize(n);
+    std::iota(chosen.begin(), chosen.end(), 0u);
+    return chosen;
+  }
+  if (k == 0) return chosen;
+  // The best k so far, best first: a larger sine, then a lower index.
+  std::vector<std::pair<float, uint32_t>> best;
+  best.reserve(k + 1);
+  auto consider = [&](uint32_t i) {
+    float sine;
+    if (!capRank(scene.spheres[i], origin, normal, sine)) return;
+    const std::pair<float, uint32_t> c{sine, i};
+    auto before = [](const std::pair<float, uint32_t>& a, const std::pair<float, uint32_t>& b) {
+      return a.first > b.first || (a.first == b.first && a.second < b.second);
+    };
+    if (best.size() == k && !before(c, best.back())) return;
+    best.insert(std::upper_bound(best.begin(), best.end(), c, before), c);
+    if (best.size() > k) best.pop_back();
+  };
+  if (usesBvh(scene)) {
+    // Passes with a decreasing floor on the sines: a pass visits only boxes
+    // that may hold a sphere at or above its floor, so when its k-th best
+    // reaches the floor no sphere it skipped could rank (kCapFloors).
+    const Bvh& bvh = scene.sphereBvh;
+    for (const float floor : kCapFloors) {
+      best.clear();
+      uint32_t stack[kBvhMaxDepth + 1];
+      int size = 0;
+      stack[size++] = 0;
+      while (size > 0) {
+        const BvhNode& node = bvh.nodes[stack[--size]];
+        const float least = best.size() == k ? std::max(floor, best.back().first) : floor;
+        if (capBound(node, origin) < least) continue;
+        if (node.count > 0) {
+          for (uint32_t j = node.first; j < node.first + node.count; ++j) consider(bvh.order[j]);
+        } else {
+          stack[size++] = node.first;
+          stack[size++] = uint32_t(&node - bvh.nodes.data()) + 1;
+        }
+      }
+      if (best.size() == k && best.back().first >= floor) break;
+    }
+  } else {
+    for (uint32_t i = 0; i < uint32_t(n); ++i) consider(i);
+  }
+  for (const auto& [sine, i] : best) chosen.push_back(i);
+  std::sort(chosen.begin(), chosen.end());
+  return chosen;
 }
 
 }  // namespace ht

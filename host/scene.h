@@ -69,4 +69,15 @@ bool occluded(const Scene& scene, const glm::vec3& origin, const glm::vec3& dir)
 // Origin for rays leaving a surface point, pushed off along the normal.
 glm::vec3 offsetRayOrigin(const glm::vec3& p, const glm::vec3& n);
 
+// The spheres whose visibility caps a shading point keeps, in increasing
+// index order: every sphere when the scene has at most `k`; else the k
+// largest as seen from `origin` (the sine of the angular radius,
+// min(1, r / d)) among those not wholly below the plane through `origin`
+// with normal `normal`, ties to the lower index. Found through the BVH with
+// a bound that skips a box none of whose spheres can rank.
+std::vector<uint32_t> capSpheres(const Scene& scene, const glm::vec3& origin, const glm::vec3& normal, size_t k);
+// A sphere's rank as capSpheres sees it; false where it is not ranked (at
+// the origin, or wholly below the plane).
+bool capRank(const Sphere& s, const glm::vec3& origin, const glm::vec3& normal, float& sine);
+
 }  // namespace ht

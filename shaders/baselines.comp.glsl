@@ -1,4 +1,4 @@
-// The baseline methods of host/integrator.cpp (uniform, cosine, env, brdf,
+// The baseline methods of host/methods/baselines.cpp (uniform, cosine, env, brdf,
 // mis, mis-compensated), sample for sample as on the CPU.
 #version 460
 #extension GL_GOOGLE_include_directive : require

@@ -8,6 +8,8 @@ layout(set = 0, binding = HT_BINDING_SCENE, scalar) uniform SceneBuffer { GpuSce
 layout(set = 0, binding = HT_BINDING_MATERIALS, scalar) readonly buffer MaterialBuffer { GpuMaterial materials[]; };
 layout(set = 0, binding = HT_BINDING_SPHERES, scalar) readonly buffer SphereBuffer { GpuSphere spheres[]; };
 layout(set = 0, binding = HT_BINDING_PLANES, scalar) readonly buffer PlaneBuffer { GpuPlane planes[]; };
+layout(set = 0, binding = HT_BINDING_BVH_NODES, scalar) readonly buffer BvhNodeBuffer { GpuBvhNode bvhNodes[]; };
+layout(set = 0, binding = HT_BINDING_BVH_ORDER, scalar) readonly buffer BvhOrderBuffer { uint bvhOrder[]; };
 layout(set = 0, binding = HT_BINDING_PIXELS, scalar) writeonly buffer PixelBuffer { GpuPixel pixels[]; };
 layout(push_constant, scalar) uniform PushBlock { GpuPush pc; };
 // The method as a specialization constant (HT_METHOD_*; HT_METHOD_ANY: the

@@ -31,7 +31,10 @@
 #define HT_BINDING_FRONTIER_CHROMA_TEXELS 10    // ht-frontier: FrontierColours::chroma
 #define HT_BINDING_FRONTIER_CENTROID_TEXELS 11  // ht-frontier: FrontierColours::centroid
 #define HT_BINDING_FRONTIER_BINS_TEXELS 12      // ht-frontier: colour bins, four per uint (R32_UINT)
-#define HT_BINDING_COUNT 13
+#define HT_BINDING_BVH_NODES 13  // GpuBvhNode[]: the spheres' BVH (host/bvh.h), depth first
+#define HT_BINDING_BVH_ORDER 14  // uint[]: its sphere indices, leaf by leaf
+#define HT_BVH_LEAF_SIZE 4       // spheres per leaf, at most (kBvhLeafSize)
+#define HT_BINDING_COUNT 15
 
 // Chunked arrays: element i lives in chunk i >> SHIFT at i & (2^SHIFT - 1).
 #define HT_MAX_CHUNKS 128
@@ -214,7 +217,7 @@ struct GpuScene {
   vec3 camPosition;
   float tanHalfFov;
   vec3 camW;
-  float reserved0;
+  uint bvhNodeCount;  // 0: the rays scan every sphere
   vec3 camU;
   uint envOrder;      // Nside = 2^envOrder
   vec3 camV;
@@ -251,6 +254,16 @@ struct GpuSphere {
   vec3 center;
   float radius;
   uint material;
+};
+
+// A node of the spheres' BVH in the order of host/bvh.h (a node's left child
+// follows it), for a traversal without a stack: `skip` is the node after its
+// subtree, where the walk goes when the ray misses the box or the leaf is done.
+struct GpuBvhNode {
+  vec3 lo;
+  uint skip;
+  vec3 hi;
+  uint leaf;  // 0: inner; else first sphere entry << 3 | count (1 to 7)
 };
 
 struct GpuPlane {
@@ -512,6 +525,7 @@ static_assert(offsetof(GpuScene, materialCount) - offsetof(GpuScene, camPosition
 static_assert(sizeof(GpuMaterial) == 40 && offsetof(GpuMaterial, diffuse) == 4 &&
               offsetof(GpuMaterial, specular) == 16 && offsetof(GpuMaterial, specularProbability) == 36);
 static_assert(sizeof(GpuSphere) == 20 && offsetof(GpuSphere, radius) == 12 && offsetof(GpuSphere, material) == 16);
+static_assert(sizeof(GpuBvhNode) == 32 && offsetof(GpuBvhNode, hi) == 16 && offsetof(GpuBvhNode, leaf) == 28);
 static_assert(sizeof(GpuPlane) == 28 && offsetof(GpuPlane, normal) == 12 && offsetof(GpuPlane, material) == 24);
 static_assert(sizeof(GpuPixel) == 32 && offsetof(GpuPixel, shaded) == 12 && offsetof(GpuPixel, htNodes) == 24);
 static_assert(sizeof(GpuPush) == 128 && offsetof(GpuPush, frontierScratch) == 120 && offsetof(GpuPush, htPending) == 112 && offsetof(GpuPush, seed) == 32 && offsetof(GpuPush, risCandidates) == 60 &&

@@ -4,6 +4,7 @@
 #ifndef HT_HT_POINT_GLSL
 #define HT_HT_POINT_GLSL
 
+#include "caps.glsl"
 #include "ht_table.glsl"
 #include "shading.glsl"
 
@@ -259,22 +260,25 @@ void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
   if (htVisibility()) {
     // Seen from the shadow rays' origin, as on the CPU.
     precise vec3 origin = offsetRayOrigin(position, normal);
-    for (uint k = 0u; k < scene.sphereCount; ++k) {
-      GpuSphere sp = spheres[k];
+    const uint capped = capSpheres(origin, normal);
+    for (uint j = 0u; j < capped; ++j) {
+      GpuSphere sp = spheres[capSphere(j)];
       precise vec3 d = sp.center - origin;
       precise float dist = length3(d);
       precise float ratio = sp.radius / dist;
       precise float angle = dist > 0.0 ? asin(min(1.0, ratio)) - kHtCapMargin : 0.0;
       precise vec3 unit = d / dist;
-      htSetCap(k, normalize3(vec3(toHealpixFrame(unit))), angle);
+      htSetCap(j, normalize3(vec3(toHealpixFrame(unit))), angle);
     }
     for (uint k = 0u; k < scene.planeCount; ++k) {
       GpuPlane p = planes[k];
       precise vec3 rel = origin - p.point;
       float side = dot3(rel, p.normal);
       vec3 below = side >= 0.0 ? -p.normal : p.normal;
-      htSetCap(scene.sphereCount + k, normalize3(vec3(toHealpixFrame(below))), kHtPlaneCapAngle);
+      htSetCap(capped + k, normalize3(vec3(toHealpixFrame(below))), kHtPlaneCapAngle);
     }
+    // Slots past the chosen spheres' (fewer than the scene's when some lie below the horizon) block nothing.
+    for (uint j = capped + scene.planeCount; j < kCapSlots; ++j) htSetCap(j, vec3(0.0), 0.0);
   }
 }
 

@@ -68,6 +68,85 @@ bool hitPlane(GpuPlane p, Ray ray, float tMin, float tMax, out float t) {
   return true;
 }
 
+// The slab test of rayBox (host/bvh.cpp): whether the ray enters the box
+// before tMax, with the same slack for rounding.
+bool rayBox(GpuBvhNode n, vec3 o, vec3 inv, float tMax) {
+  precise vec3 ta = (n.lo - o) * inv;
+  precise vec3 tb = (n.hi - o) * inv;
+  precise float enter = max(0.0, max(max(min(ta.x, tb.x), min(ta.y, tb.y)), min(ta.z, tb.z)));
+  precise float exit = min(tMax, min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z)));
+  precise float reach = exit + 1e-5 * (abs(enter) + abs(exit));
+  return enter <= reach;
+}
+
+// The closest sphere with t in (tMin, tMax) as the linear scan in index
+// order finds it (ties to the lower index), through the BVH where the host
+// uploaded one; its index, or -1, and its t in tMax. The walk only prunes
+// (host/scene.cpp's closestSphere), so any order of the leaves gives the
+// same sphere.
+int closestSphere(Ray ray, float tMin, inout float tMax) {
+  int best = -1;
+  float t;
+  if (scene.bvhNodeCount == 0u) {
+    for (uint i = 0u; i < scene.sphereCount; ++i)
+      if (hitSphere(spheres[i], ray, tMin, tMax, t)) {
+        tMax = t;
+        best = int(i);
+      }
+    return best;
+  }
+  const float limit = tMax;
+  precise vec3 inv = 1.0 / ray.dir;
+  uint node = 0u;
+  while (node < scene.bvhNodeCount) {
+    GpuBvhNode n = bvhNodes[node];
+    if (!rayBox(n, ray.origin, inv, tMax)) {
+      node = n.skip;
+      continue;
+    }
+    if (n.leaf == 0u) {
+      ++node;
+      continue;
+    }
+    for (uint k = n.leaf >> 3; k < (n.leaf >> 3) + (n.leaf & 7u); ++k) {
+      const int i = int(bvhOrder[k]);
+      if (hitSphere(spheres[i], ray, tMin, limit, t) && (t < tMax || (t == tMax && i < best))) {
+        tMax = t;
+        best = i;
+      }
+    }
+    node = n.skip;
+  }
+  return best;
+}
+
+// Whether any sphere blocks the ray in (0, inf): the BVH's walk stops at the first.
+bool anySphere(Ray ray) {
+  float t;
+  if (scene.bvhNodeCount == 0u) {
+    for (uint i = 0u; i < scene.sphereCount; ++i)
+      if (hitSphere(spheres[i], ray, 0.0, kInfinity, t)) return true;
+    return false;
+  }
+  precise vec3 inv = 1.0 / ray.dir;
+  uint node = 0u;
+  while (node < scene.bvhNodeCount) {
+    GpuBvhNode n = bvhNodes[node];
+    if (!rayBox(n, ray.origin, inv, kInfinity)) {
+      node = n.skip;
+      continue;
+    }
+    if (n.leaf == 0u) {
+      ++node;
+      continue;
+    }
+    for (uint k = n.leaf >> 3; k < (n.leaf >> 3) + (n.leaf & 7u); ++k)
+      if (hitSphere(spheres[bvhOrder[k]], ray, 0.0, kInfinity, t)) return true;
+    node = n.skip;
+  }
+  return false;
+}
+
 // Nearest hit with t in (tMin, tMax).
 bool intersectScene(Ray ray, float tMin, float tMax, out Hit hit) {
   bool any = false;
@@ -77,19 +156,17 @@ bool intersectScene(Ray ray, float tMin, float tMax, out Hit hit) {
   hit.normal = vec3(0.0);
   hit.material = 0u;
   hit.planar = false;
-  for (uint i = 0u; i < scene.sphereCount; ++i) {
-    GpuSphere s = spheres[i];
-    if (hitSphere(s, ray, tMin, tMax, t)) {
-      tMax = t;
-      any = true;
-      hit.t = t;
-      precise vec3 p = ray.origin + t * ray.dir;
-      hit.position = p;
-      precise vec3 outward = p - s.center;
-      hit.normal = normalize3(outward);
-      hit.material = s.material;
-      hit.planar = false;
-    }
+  const int sphere = closestSphere(ray, tMin, tMax);
+  if (sphere >= 0) {
+    GpuSphere s = spheres[sphere];
+    any = true;
+    hit.t = tMax;
+    precise vec3 p = ray.origin + tMax * ray.dir;
+    hit.position = p;
+    precise vec3 outward = p - s.center;
+    hit.normal = normalize3(outward);
+    hit.material = s.material;
+    hit.planar = false;
   }
   for (uint i = 0u; i < scene.planeCount; ++i) {
     GpuPlane pl = planes[i];
@@ -113,9 +190,8 @@ bool occluded(vec3 origin, vec3 dir) {
   Ray ray;
   ray.origin = origin;
   ray.dir = dir;
+  if (anySphere(ray)) return true;
   float t;
-  for (uint i = 0u; i < scene.sphereCount; ++i)
-    if (hitSphere(spheres[i], ray, 0.0, kInfinity, t)) return true;
   for (uint i = 0u; i < scene.planeCount; ++i)
     if (hitPlane(planes[i], ray, 0.0, kInfinity, t)) return true;
   return false;

@@ -2,6 +2,7 @@
 // the linear scan's, hit for hit, on random sphere sets with the cases that
 // break careless traversals (touching, nested, identical, huge and tiny
 // spheres, rays from inside, rays along the axes).
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -156,4 +157,56 @@ TEST(Bvh, ParsedScenesHaveOne) {
                              "inline.json");
   EXPECT_EQ(s.sphereBvh.spheres, 2u);
   EXPECT_FALSE(s.sphereBvh.nodes.empty());
+}
+
+// capSpheres picks what a brute-force ranking of every sphere picks (the k
+// largest sines above the plane, ties to the lower index), through the BVH
+// and without it, from points outside, on and inside spheres.
+TEST(Bvh, CapSpheresAreTheBruteForceRanking) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-12.0f, 12.0f);
+  std::normal_distribution<float> g;
+  for (int n : {0, 1, 15, 16, 17, 60, 1000}) {
+    const Scene scene = withSpheres(n > 0 ? randomSpheres(rng, n) : std::vector<Sphere>{});
+    const Scene scan = linear(scene);
+    const size_t count = scene.spheres.size();
+    int trimmed = 0;
+    for (int p = 0; p < 200; ++p) {
+      const glm::vec3 origin = p % 4 == 0 && count > 0 ? scene.spheres[size_t(p) % count].center + glm::vec3(0.01f)
+                                                       : glm::vec3(u(rng), u(rng), u(rng));
+      const glm::vec3 normal = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
+      for (size_t k : {size_t(0), size_t(1), size_t(5), size_t(15)}) {
+        std::vector<uint32_t> expected;
+        if (count <= k) {
+          for (uint32_t i = 0; i < count; ++i) expected.push_back(i);
+        } else {
+          std::vector<std::pair<float, uint32_t>> ranked;
+          for (uint32_t i = 0; i < count; ++i) {
+            float sine;
+            if (capRank(scene.spheres[i], origin, normal, sine)) ranked.push_back({-sine, i});
+          }
+          std::sort(ranked.begin(), ranked.end());
+          for (size_t j = 0; j < std::min(k, ranked.size()); ++j) expected.push_back(ranked[j].second);
+          std::sort(expected.begin(), expected.end());
+          trimmed += ranked.size() > k;
+        }
+        ASSERT_EQ(capSpheres(scene, origin, normal, k), expected) << n << " spheres, point " << p << ", k " << k;
+        ASSERT_EQ(capSpheres(scan, origin, normal, k), expected) << n << " spheres, point " << p << ", k " << k;
+      }
+    }
+    if (n >= 60) EXPECT_GT(trimmed, 100) << n;  // the ranking decides, not the count
+  }
+}
+
+// A sphere wholly below the plane through the point is not ranked; one
+// that reaches above it, or holds the point, is.
+TEST(Bvh, CapRankLeavesOutSpheresBelowTheHorizon) {
+  const glm::vec3 origin(0.0f), up(0.0f, 1.0f, 0.0f);
+  float sine = -1.0f;
+  EXPECT_FALSE(capRank({glm::vec3(0.0f, -2.0f, 0.0f), 1.0f, 0}, origin, up, sine));
+  EXPECT_TRUE(capRank({glm::vec3(0.0f, -0.5f, 0.0f), 1.0f, 0}, origin, up, sine));
+  EXPECT_FLOAT_EQ(sine, 1.0f);  // holds the point
+  EXPECT_TRUE(capRank({glm::vec3(3.0f, -0.5f, 4.0f), 1.0f, 0}, origin, up, sine));
+  EXPECT_NEAR(sine, 1.0f / std::sqrt(25.25f), 1e-6f);
+  EXPECT_FALSE(capRank({origin, 1.0f, 0}, origin, up, sine));  // centred on the point: no direction
 }

@@ -152,6 +152,8 @@ TEST(GpuShaders, InterfaceMatchesCommonHeader) {
         case HT_BINDING_SPHERES: EXPECT_EQ(b.runtimeStride, sizeof(gpu::GpuSphere)); break;
         case HT_BINDING_PLANES: EXPECT_EQ(b.runtimeStride, sizeof(gpu::GpuPlane)); break;
         case HT_BINDING_PIXELS: EXPECT_EQ(b.runtimeStride, sizeof(gpu::GpuPixel)); break;
+        case HT_BINDING_BVH_NODES: EXPECT_EQ(b.runtimeStride, sizeof(gpu::GpuBvhNode)); break;
+        case HT_BINDING_BVH_ORDER: EXPECT_EQ(b.runtimeStride, sizeof(uint32_t)); break;
         case HT_BINDING_RADIANCE_TEXELS:
         case HT_BINDING_TREE_AVG_TEXELS:
         case HT_BINDING_TREE_MAX_TEXELS:

@@ -518,11 +518,14 @@ def scaling_section(data, outdir):
     md = ["## Scaling", "",
           f"`tools/scaling.py` on {data['scene']}, device {data['device']}, median of {data['runs']} run(s); the "
           f"spp and Nside sweeps at {data['width']}x{data['height']}, the Nside and size sweeps at "
-          f"{data['sweep_spp']} spp. Render time is the render stage alone (wall); setup is reported apart.", ""]
-    sweeps = [s for s in ("spp", "nside", "size") if any(r["sweep"] == s for r in rows)]
+          f"{data['sweep_spp']} spp. Render time is the render stage alone (wall); setup is reported apart. The "
+          f"sphere sweep renders a field of N spheres on a plane (`tools/sphere_field.py`) on each device named "
+          f"after its method (gpu: the Vulkan path on the machine's device).", ""]
+    sweeps = [s for s in ("spp", "nside", "size", "spheres") if any(r["sweep"] == s for r in rows)]
     if sweeps:
         fig, ax = plt.subplots(1, len(sweeps), figsize=(5.2 * len(sweeps), 4.0), squeeze=False)
-        labels = {"spp": "samples per pixel", "nside": "environment Nside", "size": "image pixels"}
+        labels = {"spp": "samples per pixel", "nside": "environment Nside", "size": "image pixels",
+                  "spheres": "spheres (sphere field, 128x64)"}
         for a, s in zip(ax[0], sweeps):
             srows = [r for r in rows if r["sweep"] == s]
             for m in dict.fromkeys(r["method"] for r in srows):
@@ -560,6 +563,12 @@ def scaling_section(data, outdir):
             md.append("")
             # Growth between the extreme points: time ratio against x ratio (1.0 = linear).
             for m in ms:
+                if s == "spheres":
+                    mr = {r["x"]: r["seconds"] for r in srows if r["method"] == m}
+                    if 16 in mr and max(mr) > 16 and mr[16] > 0:
+                        md.append(f"- {m}: {mr[max(mr)] / mr[16]:.1f}x the time from 16 to {max(mr)} spheres "
+                                  f"({mr[16]:.3f} s to {mr[max(mr)]:.3f} s).")
+                    continue
                 mr = sorted((r for r in srows if r["method"] == m), key=lambda r: r["x"])
                 if len(mr) >= 2 and mr[0]["seconds"] > 0 and mr[-1]["x"] > mr[0]["x"]:
                     k = math.log(mr[-1]["seconds"] / mr[0]["seconds"]) / math.log(mr[-1]["x"] / mr[0]["x"])

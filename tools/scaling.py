@@ -14,7 +14,10 @@ median of --runs renders:
   tree    the environment stage split into load / resample / trees for the
           scene's 1024x512 map and for a generated 8192x4096 map
           (`make_env sky-sun`), at each --tree-nside, rendered at 1x1 so the
-          render itself costs nothing.
+          render itself costs nothing;
+  spheres render time against the number of spheres of a sphere field
+          (tools/sphere_field.py under sunrise.exr), per method and device
+          (--sphere-methods, --sphere-devices).
 
 Writes scaling.csv (one row per point: sweep, method, x, seconds, ...) and
 scaling.json (settings, machine and the same rows) into --out.
@@ -29,6 +32,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench import csv_text, machine, write_atomic  # noqa: E402
+from sphere_field import field_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -37,11 +41,11 @@ def ints(s):
     return [int(x) for x in s.split(",") if x]
 
 
-def render(args, scene, method, spp, width, height, tmp, seed=1):
+def render(args, scene, method, spp, width, height, tmp, seed=1, device=None):
     out = tmp / "render.exr"
     stats = tmp / "render.json"
     cmd = [args.htrender, "render", "--scene", str(scene), "--method", method, "--spp", str(spp), "--seed", str(seed),
-           "--device", args.device, "--width", str(width), "--height", str(height), "--out", str(out),
+           "--device", device or args.device, "--width", str(width), "--height", str(height), "--out", str(out),
            "--stats", str(stats), "-q"]
     res = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
     if res.returncode != 0:
@@ -49,16 +53,17 @@ def render(args, scene, method, spp, width, height, tmp, seed=1):
     return json.loads(stats.read_text())
 
 
-def point(args, sweep, scene, method, x, spp, width, height, tmp, runs=None):
-    all_stats = [render(args, scene, method, spp, width, height, tmp, seed=1 + k) for k in range(runs or args.runs)]
+def point(args, sweep, scene, method, x, spp, width, height, tmp, runs=None, device=None, label=None):
+    all_stats = [render(args, scene, method, spp, width, height, tmp, seed=1 + k, device=device)
+                 for k in range(runs or args.runs)]
     med = lambda key: statistics.median(s["seconds"].get(key, 0.0) or 0.0 for s in all_stats)  # noqa: E731
-    row = {"sweep": sweep, "method": method, "x": x, "spp": spp, "width": width, "height": height,
+    row = {"sweep": sweep, "method": label or method, "x": x, "spp": spp, "width": width, "height": height,
            "nside": all_stats[0]["environment"]["nside"], "seconds": med("render"),
            "seconds_runs": [s["seconds"]["render"] for s in all_stats],
            "environment": med("environment"), "environment_load": med("environment_load"),
            "environment_resample": med("environment_resample"), "environment_trees": med("environment_trees"),
            "prepare": med("prepare"), "samples_per_pixel": all_stats[0]["mean_samples_per_pixel"]}
-    print(f"scaling: {sweep:>6} {method:>14} x={x:<9} render {row['seconds']:8.3f} s  env {row['environment']:.3f} s "
+    print(f"scaling: {sweep:>7} {row['method']:>20} x={x:<9} render {row['seconds']:8.3f} s  env {row['environment']:.3f} s "
           f"(load {row['environment_load']:.3f}, resample {row['environment_resample']:.3f}, "
           f"trees {row['environment_trees']:.4f})", file=sys.stderr)
     return row
@@ -88,7 +93,11 @@ def main():
     p.add_argument("--sweep-spp", type=int, default=16, help="spp of the nside and size sweeps")
     p.add_argument("--tree-nside", default="256,512", help="Nsides of the tree-build sweep")
     p.add_argument("--big-map", default="8192x4096", help="size of the generated map of the tree-build sweep")
-    p.add_argument("--sweeps", default="spp,nside,size,tree")
+    p.add_argument("--spheres", default="1,16,128,1024,8192", help="the sphere-count sweep")
+    p.add_argument("--sphere-methods", default="mis,ht-vis,ht-frontier")
+    p.add_argument("--sphere-devices", default="cpu,gpu")
+    p.add_argument("--sphere-size", default="128x64", help="image size of the sphere-count sweep")
+    p.add_argument("--sweeps", default="spp,nside,size,tree,spheres")
     p.add_argument("--runs", type=int, default=1)
     p.add_argument("--device", default="cpu")
     p.add_argument("--htrender", default=str(ROOT / "build" / "htrender"))
@@ -132,6 +141,17 @@ def main():
                     row = point(args, "tree", sc, "uniform", n, 1, 1, 1, tmp, runs=max(1, args.runs))
                     row["map"] = label
                     rows.append(row)
+
+        if "spheres" in sweeps:
+            w, h = map(int, args.sphere_size.split("x"))
+            env = str((ROOT / "data" / "env" / "sunrise.exr").resolve())
+            for n in ints(args.spheres):
+                sc = tmp / f"field-{n}.json"
+                sc.write_text(json.dumps(field_scene(n, env, width=w, height=h)))
+                for device in [d for d in args.sphere_devices.split(",") if d]:
+                    for m in [m for m in args.sphere_methods.split(",") if m]:
+                        rows.append(point(args, "spheres", sc, m, n, args.sweep_spp, w, h, tmp, device=device,
+                                          label=f"{m} ({device})"))
 
     result = {"machine": machine(), "device": args.device, "runs": args.runs, "scene": Path(args.scene).name,
               "width": args.width, "height": args.height, "sweep_spp": args.sweep_spp, "results": rows}

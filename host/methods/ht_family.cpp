@@ -24,12 +24,14 @@ HtOptions htOptionsFor(Method method, const MethodOptions& methodOptions) {
   return options;
 }
 
-std::string gpuCapsLimit(Method method, size_t occluders) {
-  if (methodInfo(method).visibility && occluders > HT_MAX_CAPS)
-    return fmt::format("method {} on the GPU handles at most {} spheres and planes (the scene has {}); "
-                       "use --device cpu", methodName(method), HT_MAX_CAPS, occluders);
+std::string gpuCapsLimit(Method method, const Scene& scene) {
+  if (methodInfo(method).visibility && scene.planes.size() > HT_MAX_CAPS)
+    return fmt::format("method {} on the GPU handles at most {} planes (the scene has {}); use --device cpu",
+                       methodName(method), HT_MAX_CAPS, scene.planes.size());
   return {};
 }
+
+static_assert(kMaxCaps == HT_MAX_CAPS);
 
 namespace {
 

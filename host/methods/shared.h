@@ -15,8 +15,9 @@ std::unique_ptr<GpuMethodState> makeHtGpuState();           // ht_gpu.cpp
 std::unique_ptr<GpuMethodState> makeCompetitorGpuState();   // competitors_gpu.cpp
 std::unique_ptr<GpuMethodState> makeFrontierGpuState();     // frontier_gpu.cpp
 
-// The shaders hold HT_MAX_CAPS visibility caps per shading point: a method
-// whose density has them refuses scenes with more spheres and planes.
-std::string gpuCapsLimit(Method method, size_t occluders);
+// The shaders hold HT_MAX_CAPS visibility caps per shading point, every
+// plane's and the largest spheres' (capSpheres): a method whose density has
+// them refuses scenes with more planes.
+std::string gpuCapsLimit(Method method, const Scene& scene);
 
 }  // namespace ht
