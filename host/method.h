@@ -83,7 +83,8 @@ struct GpuSupport {
   const char* shader;     // its family's compute shader: shaders/<shader>.comp.glsl
   bool float64 = false;   // only with shaderFloat64
   uint32_t maxTileSide = UINT32_MAX;
-  // Loop iterations one sample costs (ht*: one traversal step), for the first batch size.
+  // Loop iterations one sample costs (ht*: one traversal step), for the
+  // first batch size; `shapes`: the spheres and planes a ray tests, about.
   uint64_t (*loopCost)(const RenderSettings& s, int envOrder, size_t shapes) = nullptr;
   // Directions a pixel draws, roughly (null: spp).
   uint64_t (*directionsPerPixel)(const RenderSettings& s) = nullptr;

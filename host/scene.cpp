@@ -361,7 +361,7 @@ bool usesBvh(const Scene& scene) {
 
 // capSpheres' floors on the sines, pass by pass; the last, 0, visits every
 // box that may rank.
-constexpr float kCapFloors[] = {0.2f, 0.05f, 0.0f};
+constexpr float kCapFloors[] = {0.05f, 0.01f, 0.0f};
 
 // An upper bound of capRank's sine for any sphere inside the node's box:
 // such a sphere has r <= R, half the box's least extent, and its nearest

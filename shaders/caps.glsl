@@ -72,7 +72,7 @@ uint capSpheres(vec3 origin, vec3 normal) {
   } else {
     // Passes with capSpheres' floors (host/scene.cpp): the first visits the
     // boxes near the point only.
-    const float floors[3] = float[3](0.2, 0.05, 0.0);
+    const float floors[3] = float[3](0.05, 0.01, 0.0);
     for (uint pass = 0u; pass < 3u; ++pass) {
       count = 0u;
       uint node = 0u;

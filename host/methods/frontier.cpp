@@ -58,12 +58,13 @@ void frontierMemory(const MemoryInputs& in, MethodMemory& m) {
   if (in.gpu) m.gpu += nodes * 27 + (uint64_t(96) << 20);
 }
 
-// Per direction a descent of four children a level, each under the caps,
-// and a few binary searches.
+// Per direction a descent of four children a level, each under the caps
+// (at most HT_MAX_CAPS), and a few binary searches.
 const GpuSupport kFrontierGpu{
     .shader = "frontier",
     .loopCost = [](const RenderSettings&, int envOrder, size_t shapes) {
-      return uint64_t(envOrder) * (4 + 4 * uint64_t(shapes)) + 40 + gpuDescentCost(envOrder, shapes);
+      const uint64_t caps = std::min<uint64_t>(shapes, HT_MAX_CAPS);
+      return uint64_t(envOrder) * (4 + 4 * caps) + 40 + gpuDescentCost(envOrder, shapes);
     },
     .sceneLimit = gpuCapsLimit,
     .makeState = makeFrontierGpuState,

@@ -97,7 +97,8 @@ const GpuSupport kHtGpu{
     // 96x48: the longest batch within llvmpipe's loop limit was 4096 steps at
     // 64 spp, 1024 at 256, 512 at 1024).
     .loopCost = [](const RenderSettings& s, int, size_t shapes) {
-      return (4 + 2 * uint64_t(shapes)) * std::max<uint64_t>(1, uint64_t(std::max(s.spp, 1)) / 64);
+      const uint64_t caps = std::min<uint64_t>(shapes, HT_MAX_CAPS);
+      return (4 + 2 * caps) * std::max<uint64_t>(1, uint64_t(std::max(s.spp, 1)) / 64);
     },
     // The traversal takes some 40 steps per sample, read back to see when it is done.
     .stepsPerSample = 40,
