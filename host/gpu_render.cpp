@@ -106,19 +106,19 @@ constexpr uint64_t kLoopIterationsPerBatch = 16384;
 // dispatch whose loops were cut short makes the renderer halve it and start
 // the tile again.
 uint32_t firstBatchLimit(const RenderSettings& s, int envOrder, size_t shapes) {
-  const GpuSupport& g = *methodInfo(s.method).gpu;
+  const GpuSupport& g = *methodSpec(s.method).gpu;
   const uint64_t cost = g.loopCost ? g.loopCost(s, envOrder, shapes) : gpuDescentCost(envOrder, shapes);
   return uint32_t(std::clamp<uint64_t>(kLoopIterationsPerBatch / std::max<uint64_t>(cost, 1), 1, 1u << 20));
 }
 
 // Directions a pixel draws, roughly.
 uint64_t directionsPerPixel(const RenderSettings& s) {
-  const GpuSupport& g = *methodInfo(s.method).gpu;
+  const GpuSupport& g = *methodSpec(s.method).gpu;
   return g.directionsPerPixel ? g.directionsPerPixel(s) : uint64_t(std::max(s.spp, 1));
 }
 
 bool usesBrdfTable(const RenderSettings& s) {
-  const GpuSupport& g = *methodInfo(s.method).gpu;
+  const GpuSupport& g = *methodSpec(s.method).gpu;
   return g.brdfTable && g.brdfTable(s);
 }
 
@@ -182,7 +182,7 @@ void GpuRenderer::Impl::usePipeline(Method method, bool brdfTable) {
     return;
   const uint32_t specialization[] = {uint32_t(method), texels ? 1u : 0u, capSlots, brdfTable ? 1u : 0u};
   shaderName =
-      fmt::format("{}.{}.spv", methodInfo(method).gpu->shader, usesFloat64(method) ? "fp64" : "fp32");
+      fmt::format("{}.{}.spv", methodSpec(method).gpu->shader, usesFloat64(method) ? "fp64" : "fp32");
   pipeline.emplace(ctx, (std::filesystem::path(shaderDir) / shaderName).string(), kBindings,
                    uint32_t(sizeof(GpuPush)), std::array<uint32_t, 3>{kWorkgroupSize, kWorkgroupSize, 1},
                    specialization);
@@ -325,7 +325,7 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
                             methodName(s.method)));
   if (precision == GpuPrecision::Fp64 && !ctx.float64)
     throw Error(fmt::format("--gpu-precision fp64 needs shaderFloat64, which {} lacks", info.name));
-  if (methodInfo(s.method).gpu->float64 && !usesFloat64(s.method))
+  if (methodSpec(s.method).gpu->float64 && !usesFloat64(s.method))
     throw Error(fmt::format("method {} needs shaderFloat64 on the GPU ({} has none, or --gpu-precision is fp32); "
                             "use --device cpu", methodName(s.method), info.name));
 }
@@ -334,7 +334,7 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
 // draws at most directionsPerDispatch directions (and its scratch takes at
 // most scratchBudget); their buffers.
 std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettings& s) {
-  uint32_t side = std::min(maxTileSide, methodInfo(s.method).gpu->maxTileSide);
+  uint32_t side = std::min(maxTileSide, methodSpec(s.method).gpu->maxTileSide);
   GpuMethodState* state = methodState(s.method);
   const uint64_t scratch = state ? state->scratchBytesPerPixel(s) : 0;
   while (side > kWorkgroupSize && uint64_t(side) * side * directionsPerPixel(s) > directionsPerDispatch(ctx.info))
@@ -438,7 +438,7 @@ void GpuRenderer::Impl::renderTile(const RenderSettings& s, GpuPush& push, uint3
   const size_t tilePixels = size_t(push.tileWidth) * push.tileHeight;
   const auto* px = static_cast<const GpuPixel*>(pixelsHost.mapped());
   const uint64_t spp = uint64_t(std::max(s.spp, 1));
-  const GpuSupport& g = *methodInfo(s.method).gpu;
+  const GpuSupport& g = *methodSpec(s.method).gpu;
   for (uint32_t batch = 0;;) {
     // The sampling methods need ceil(spp / limit) batches; HT's traversal
     // takes some steps per sample (GpuSupport::stepsPerSample), read back
@@ -491,15 +491,15 @@ void GpuRenderer::Impl::readTile(const RenderSettings& s, const GpuPush& push, G
   if (GpuMethodState* state = methodState(s.method)) state->readTile(s, push, px, out);
 }
 
-bool gpuSupportsMethod(Method m) { return methodInfo(m).gpu != nullptr; }
+bool gpuSupportsMethod(Method m) { return methodSpec(m).gpu != nullptr; }
 
 std::string gpuSceneLimit(Method method, const Scene& scene) {
-  const GpuSupport* g = methodInfo(method).gpu;
+  const GpuSupport* g = methodSpec(method).gpu;
   return g && g->sceneLimit ? g->sceneLimit(method, scene) : std::string();
 }
 
 GpuMethodState* GpuRenderer::Impl::methodState(Method method) {
-  const GpuSupport& g = *methodInfo(method).gpu;
+  const GpuSupport& g = *methodSpec(method).gpu;
   if (!g.makeState) return nullptr;
   std::unique_ptr<GpuMethodState>& state = states[g.makeState];
   if (!state) state = g.makeState();
@@ -541,7 +541,7 @@ GpuPush GpuRenderer::Impl::tilePush(const RenderSettings& s, uint32_t x, uint32_
   push.canaryLoops = 2;
   push.canaryZero = 0;
   push.pixelState = pixelState.address();
-  const GpuSupport& g = *methodInfo(s.method).gpu;
+  const GpuSupport& g = *methodSpec(s.method).gpu;
   if (g.push) g.push(s, push);
   if (GpuMethodState* state = methodState(s.method)) state->bindScratch(s, push);
   return push;

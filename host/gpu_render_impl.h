@@ -83,7 +83,7 @@ struct GpuRenderer::Impl {
   // The shader variant the method runs in.
   bool usesFloat64(Method method) const {
     if (!ctx.float64) return false;
-    return precision == GpuPrecision::Fp64 || (precision == GpuPrecision::Auto && methodInfo(method).gpu->float64);
+    return precision == GpuPrecision::Fp64 || (precision == GpuPrecision::Auto && methodSpec(method).gpu->float64);
   }
   void uploadTables(const RenderSettings& s, const MethodTables& tables);
   void checkMethod(const RenderSettings& s) const;

@@ -4,7 +4,7 @@ namespace ht {
 
 MethodTables prepareTables(const Scene& scene, Method method, const MethodOptions& options, TablesFor device) {
   MethodTables t;
-  if (const auto prepare = methodInfo(method).prepare) prepare(scene, method, options, device, t);
+  if (const auto prepare = methodSpec(method).prepare) prepare(scene, method, options, device, t);
   return t;
 }
 
@@ -16,7 +16,7 @@ glm::vec3 visibleReflectance(const Scene& scene, const ShadingPoint& sp, const g
 glm::vec3 estimateDirect(const Scene& scene, const ShadingPoint& sp, Method method, int spp, Rng& rng,
                          EstimateCounters& counters, const MethodTables& tables, const MethodOptions& options) {
   PixelSampler sampler(options.sampler, rng.nextUint());
-  return methodInfo(method).estimate(scene, sp, method, spp, rng, sampler, counters, tables, options);
+  return methodSpec(method).estimate(scene, sp, method, spp, rng, sampler, counters, tables, options);
 }
 
 }  // namespace ht

@@ -92,7 +92,7 @@ std::unique_ptr<GpuRenderer> openGpu(const RenderOptions& o, const Scene& scene,
   if (!gpuSupportsMethod(method)) {
     if (o.device == "gpu") {
       std::string gpuMethods;
-      for (const MethodInfo& m : allMethods())
+      for (const MethodSpec& m : allMethods())
         if (gpuSupportsMethod(m.method)) gpuMethods += fmt::format("{}{}", gpuMethods.empty() ? "" : ", ", m.name);
       throw Error(fmt::format("--device gpu: method {} runs on the CPU reference only (the GPU path renders {}); "
                               "use --device cpu",
@@ -253,7 +253,7 @@ int runRender(const RenderOptions& o) {
   auto method = parseMethod(o.method);
   if (!method) {
     std::string names;
-    for (const MethodInfo& m : allMethods()) names += std::string(names.empty() ? "" : ", ") + m.name;
+    for (const MethodSpec& m : allMethods()) names += std::string(names.empty() ? "" : ", ") + m.name;
     throw Error(fmt::format("unknown method \"{}\" (one of: {})", o.method, names));
   }
   if (o.device == "cpu" && o.gpuIndex >= 0)
@@ -396,7 +396,7 @@ void addRenderOptions(CLI::App& r, RenderOptions& o) {
 
 int runMethods() {
   std::printf("%-14s %-11s %-8s %-4s %s\n", "method", "family", "biased", "gpu", "samples");
-  for (const MethodInfo& m : allMethods())
+  for (const MethodSpec& m : allMethods())
     std::printf("%-14s %-11s %-8s %-4s %s\n", m.name, familyName(m.family), m.biased ? "yes" : "no",
                 m.gpu ? (m.gpu->float64 ? "fp64" : "yes") : "no", m.description);
   return 0;

@@ -47,7 +47,7 @@ MemoryEstimate estimateRenderMemory(const MemoryInputs& in) {
 
   // The method's tables, and its part of the GPU's buffers.
   MethodMemory method;
-  if (const auto memory = methodInfo(in.method).memory) memory(in, method);
+  if (const auto memory = methodSpec(in.method).memory) memory(in, method);
   uint64_t tables = 0;
   for (const auto& [what, bytes] : method.tables) tables += add(what, bytes);
   // The image, and while writing its PNG the 8-bit copy and the encoded file.

@@ -128,11 +128,10 @@ struct MethodSpec {
   void (*memory)(const MemoryInputs& in, MethodMemory& out) = nullptr;
   const GpuSupport* gpu = nullptr;  // null: the CPU reference only
 };
-using MethodInfo = MethodSpec;
 
 // Every method, in the order of their numbers.
 std::span<const MethodSpec> allMethods();
-const MethodSpec& methodInfo(Method m);
+const MethodSpec& methodSpec(Method m);
 std::optional<Method> parseMethod(std::string_view name);
 const char* methodName(Method m);
 const char* familyName(Family f);

@@ -23,9 +23,9 @@ Environment onePixelSun(float background = 0.02f) { return test::onePixelSun(kEn
 // The baselines, unbiased HT and the HT frontier. The biased variants and
 // the competitors (wis, tsis, ris) have their own tests; the brute-force
 // oracle is too slow for these sample counts (tested below).
-std::vector<MethodInfo> unbiasedMethods() {
-  std::vector<MethodInfo> methods;
-  for (const MethodInfo& m : allMethods())
+std::vector<MethodSpec> unbiasedMethods() {
+  std::vector<MethodSpec> methods;
+  for (const MethodSpec& m : allMethods())
     if (!m.biased && (m.family == Family::Baseline || m.family == Family::Ht || m.family == Family::Product))
       methods.push_back(m);
   return methods;
@@ -55,7 +55,7 @@ std::vector<ShadingSetup> unbiasednessSetups() {
 // standard error.
 TEST(Estimators, UnbiasedAgainstBruteForce) {
   const std::vector<ShadingSetup> setups = unbiasednessSetups();
-  const std::vector<MethodInfo> methods = unbiasedMethods();
+  const std::vector<MethodSpec> methods = unbiasedMethods();
   const int tests = int(setups.size() * methods.size() * 3);
   const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
   for (const ShadingSetup& s : setups) {
@@ -64,7 +64,7 @@ TEST(Estimators, UnbiasedAgainstBruteForce) {
     glm::dvec3 refError = glm::abs(ref - coarse);
     ASSERT_GT(ref.g, 0.0) << s.name;
     EXPECT_LT(refError.g, 1e-2 * ref.g) << s.name << ": brute force not converged";
-    for (const MethodInfo& m : methods) {
+    for (const MethodSpec& m : methods) {
       MeanAndError e = repeatedEstimates(s, m.method, 40000, 32, 1234);
       for (int c = 0; c < 3; ++c) {
         double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
@@ -84,7 +84,7 @@ TEST(Estimators, WhiteFurnace) {
   const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
   for (float albedo : {0.3f, 0.8f}) {
     ShadingSetup s = makeSetup("furnace", constantEnvironment(3, glm::vec3(1.0f)), lambert(albedo), {0.4f, 0.7f, -0.2f});
-    for (const MethodInfo& m : unbiasedMethods()) {
+    for (const MethodSpec& m : unbiasedMethods()) {
       MeanAndError e = repeatedEstimates(s, m.method, 20000, 4, 99);
       if (m.method == Method::Cosine || m.method == Method::Brdf || m.method == Method::MisCompensated) {
         EXPECT_NEAR(e.mean.g, albedo, 1e-5 * albedo) << m.name;
@@ -117,7 +117,7 @@ TEST(Estimators, EnvironmentSamplingFindsASinglePixelSun) {
 TEST(Estimators, BlackEnvironmentIsZero) {
   ShadingSetup s = makeSetup("black", constantEnvironment(2, glm::vec3(0.0f)), ggx(0.3f, glm::vec3(0.5f), glm::vec3(0.5f)),
                       {0.0f, 1.0f, 0.3f});
-  for (const MethodInfo& m : allMethods()) {
+  for (const MethodSpec& m : allMethods()) {
     MeanAndError e = repeatedEstimates(s, m.method, 100, 4, 1);
     EXPECT_EQ(e.mean, glm::dvec3(0.0)) << m.name;
   }

@@ -679,7 +679,7 @@ TEST(GpuRenderTiles, BlackEnvironmentAndRefusedMethods) {
   GpuRenderer r(gpuOptions());
   r.setScene(scene);
   // Every method of the registry: black where the GPU path has it, refused where not.
-  for (const MethodInfo& info : allMethods()) {
+  for (const MethodSpec& info : allMethods()) {
     const Method m = info.method;
     EXPECT_EQ(gpuSupportsMethod(m), info.gpu != nullptr) << info.name;
     if (!info.gpu) {
@@ -777,7 +777,7 @@ TEST(GpuCompetitors, TsisAndWisNeedFloat64) {
   GpuRenderer r(gpuOptions(true));
   r.setScene(testScene());
   std::vector<Method> float64Methods;
-  for (const MethodInfo& info : allMethods())
+  for (const MethodSpec& info : allMethods())
     if (info.gpu && info.gpu->float64) float64Methods.push_back(info.method);
   EXPECT_EQ(float64Methods, (std::vector<Method>{Method::Wis, Method::WisBiased, Method::Tsis}));
   for (Method m : float64Methods) {
@@ -851,9 +851,9 @@ std::string highSppName(const HighSppCase& c) {
 std::vector<HighSppCase> highSppCases(int spp) {
   std::vector<HighSppCase> cases;
   // Every method the GPU path has, in the registry's order; HT's also with tabulated BRDF bounds.
-  for (const MethodInfo& info : allMethods())
+  for (const MethodSpec& info : allMethods())
     if (info.gpu) cases.push_back({info.method, MethodOptions::BrdfBounds::Analytic, spp});
-  for (const MethodInfo& info : allMethods())
+  for (const MethodSpec& info : allMethods())
     if (info.gpu && info.family == Family::Ht) cases.push_back({info.method, MethodOptions::BrdfBounds::Table, spp});
   return cases;
 }

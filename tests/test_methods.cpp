@@ -19,7 +19,7 @@ TEST(Methods, RegistryHoldsEveryNumberOnceInOrder) {
     EXPECT_EQ(size_t(m.method), i) << m.name;
     EXPECT_TRUE(names.insert(m.name).second) << "two methods named " << m.name;
     EXPECT_EQ(parseMethod(m.name), m.method);
-    EXPECT_EQ(&methodInfo(m.method), &m);
+    EXPECT_EQ(&methodSpec(m.method), &m);
     EXPECT_NE(m.estimate, nullptr) << m.name;
     EXPECT_GE(m.directionsPerSample, 1) << m.name;
   }

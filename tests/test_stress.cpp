@@ -39,7 +39,7 @@ TEST(Stress, EveryMethodGivesFiniteNonNegativePixels) {
   options.oracleOrder = 2;
   for (const std::string& path : stressScenes()) {
     Scene scene = loadSmall(path, 16);
-    for (const MethodInfo& m : allMethods()) {
+    for (const MethodSpec& m : allMethods()) {
       RenderSettings rs;
       rs.method = m.method;
       rs.spp = 4;
@@ -92,8 +92,8 @@ TEST(StressSlow, EveryUnbiasedMethodAgreesWithBruteForce) {
   std::vector<Point> points;
   for (const std::string& path : stressScenes())
     for (ShadingSetup& s : shadingPoints(path, 32)) points.push_back({s.name, std::move(s)});
-  std::vector<MethodInfo> methods;
-  for (const MethodInfo& m : allMethods())
+  std::vector<MethodSpec> methods;
+  for (const MethodSpec& m : allMethods())
     if (!m.biased) methods.push_back(m);
   const int tests = int(points.size() * methods.size());
   const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
@@ -102,7 +102,7 @@ TEST(StressSlow, EveryUnbiasedMethodAgreesWithBruteForce) {
   for (const Point& p : points) {
     const double ref = bruteForceIntegral(p.setup, 12).g;
     const double refError = std::abs(ref - bruteForceIntegral(p.setup, 6).g);
-    for (const MethodInfo& m : methods) {
+    for (const MethodSpec& m : methods) {
       // One-direction samplers are cheap and heavy-tailed here: many samples.
       const bool cheap = m.method == Method::Uniform || m.method == Method::Cosine || m.method == Method::Env ||
                          m.method == Method::Brdf || m.method == Method::Mis;

@@ -17,15 +17,15 @@ namespace ht {
 
 HtOptions htOptionsFor(Method method, const MethodOptions& methodOptions) {
   HtOptions options;
-  options.visibility = methodInfo(method).visibility;
-  options.biased = methodInfo(method).biased;
+  options.visibility = methodSpec(method).visibility;
+  options.biased = methodSpec(method).biased;
   options.brdfTable = methodOptions.brdfBounds == MethodOptions::BrdfBounds::Table;
   options.sphereSequence = methodOptions.htSphereSequence;
   return options;
 }
 
 std::string gpuCapsLimit(Method method, const Scene& scene) {
-  if (methodInfo(method).visibility && scene.planes.size() > HT_MAX_CAPS)
+  if (methodSpec(method).visibility && scene.planes.size() > HT_MAX_CAPS)
     return fmt::format("method {} on the GPU handles at most {} planes (the scene has {}); use --device cpu",
                        methodName(method), HT_MAX_CAPS, scene.planes.size());
   return {};

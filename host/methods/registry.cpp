@@ -45,7 +45,7 @@ const std::vector<MethodSpec>& registry() {
 
 std::span<const MethodSpec> allMethods() { return registry(); }
 
-const MethodSpec& methodInfo(Method m) {
+const MethodSpec& methodSpec(Method m) {
   if (size_t(m) >= registry().size()) throw Error(fmt::format("internal: no method numbered {}", uint32_t(m)));
   return registry()[size_t(m)];
 }
@@ -56,7 +56,7 @@ std::optional<Method> parseMethod(std::string_view name) {
   return std::nullopt;
 }
 
-const char* methodName(Method m) { return methodInfo(m).name; }
+const char* methodName(Method m) { return methodSpec(m).name; }
 
 const char* familyName(Family f) {
   switch (f) {
