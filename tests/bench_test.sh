@@ -25,8 +25,9 @@ EOF
 $py "$src/tools/bench.py" --htrender "$htrender" --scene "$tmp/scene.json" --methods mis,ht-vis,ht-frontier --spp 1,4 \
   --samplers stratified,independent --runs 1 --width 32 --height 16 --ref-spp 256 --out "$tmp/bench" 2> "$tmp/bench.log" ||
   { cat "$tmp/bench.log"; exit 1; }
-$py "$src/tools/scaling.py" --htrender "$htrender" --scene "$tmp/scene.json" --methods mis --sweeps spp \
-  --spp 1,4 --width 16 --height 8 --out "$tmp/scaling" 2> "$tmp/scaling.log" ||
+$py "$src/tools/scaling.py" --htrender "$htrender" --scene "$tmp/scene.json" --methods mis --sweeps spp,spheres \
+  --spp 1,4 --width 16 --height 8 --spheres 1,20 --sphere-methods mis --sphere-devices cpu --sphere-size 16x8 \
+  --out "$tmp/scaling" 2> "$tmp/scaling.log" ||
   { cat "$tmp/scaling.log"; exit 1; }
 mkdir -p "$tmp/report" && echo keep > "$tmp/report/other.png"
 $py "$src/tools/report.py" --htrender "$htrender" --bench "$tmp/bench" --stress "$tmp/bench" \
@@ -62,8 +63,11 @@ check(mis[4] < mis[1], f"mis error falls from 1 to 4 spp ({mis[1]:.4f} -> {mis[4
 ref = next(iter(res["references"].values()))
 check(math.isfinite(ref["residual_rmse"]) and ref["residual_rmse"] < mis[4], "reference residual below the 4 spp error")
 sc = json.loads((tmp / "scaling/scaling.json").read_text())["results"]
-check(len(sc) == 2 and all(r["seconds"] >= 0 and r["environment_trees"] >= 0 for r in sc), "scaling rows")
+check(len(sc) == 4 and all(r["seconds"] >= 0 and r["environment_trees"] >= 0 for r in sc), "scaling rows")
+check([(r["sweep"], r["method"], r["x"]) for r in sc if r["sweep"] == "spheres"] ==
+      [("spheres", "mis (cpu)", 1), ("spheres", "mis (cpu)", 20)], "sphere sweep rows")
 md = (tmp / "report/README.md").read_text()
+check("| spheres | mis (cpu) |" in md, "sphere sweep table")
 for s in ("## scene", "slide 52", "Stress scenes", "## Scaling", "ht-vis", "Efficiency against `mis` at 4 spp",
           "`ht-frontier` against `mis`", "Stratified against independent"):
     check(s in md, f"report mentions {s!r}")
