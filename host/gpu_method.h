@@ -22,8 +22,8 @@ struct MethodTables;
 struct RenderSettings;
 struct Scene;
 
-// A texel binding's format and the buffer (first chunk) it views; null:
-// a placeholder.
+// A texel binding's format and the buffer (first chunk) it views; without
+// one, the renderer binds a one-word buffer of that format.
 struct TexelBinding {
   VkFormat format;
   vk::Buffer* buffer = nullptr;

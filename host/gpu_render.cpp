@@ -288,7 +288,7 @@ void GpuRenderer::setScene(const Scene& scene) {
   std::vector<GpuBvhNode> bvhNodes(bvh.spheres == scene.spheres.size() ? bvh.nodes.size() : 0);
   for (size_t i = bvhNodes.size(); i-- > 0;) {
     const BvhNode& n = bvh.nodes[i];
-    if (n.count > 7 || n.first >= (1u << 29)) throw Error("internal: a BVH leaf beyond the GPU's node format");
+    if (n.count > HT_BVH_LEAF_SIZE || n.first >= (1u << 29)) throw Error("internal: a BVH leaf beyond the GPU's node format");
     bvhNodes[i] = {n.lo, n.count > 0 ? uint32_t(i + 1) : bvhNodes[n.first].skip, n.hi,
                    n.count > 0 ? n.first << 3 | n.count : 0u};
   }
@@ -348,7 +348,7 @@ std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettin
   // write: a new buffer is filled here, before the render's clock starts, as
   // a GPU's memory is in place once allocated.
   std::vector<vk::Buffer*> fresh;
-  auto deviceBuffer = [&](vk::Buffer& b, VkDeviceSize bytes) {
+  const std::function<bool(vk::Buffer&, VkDeviceSize)> deviceBuffer = [&](vk::Buffer& b, VkDeviceSize bytes) {
     if (b.size() >= bytes) return false;
     b = vk::Buffer(ctx, bytes, vk::MemoryUse::DeviceLocal);
     fresh.push_back(&b);
@@ -360,8 +360,7 @@ std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettin
   }
   deviceBuffer(pixelState, tilePixels * sizeof(GpuPixelState));
   if (state) {
-    const std::function<bool(vk::Buffer&, VkDeviceSize)> makeBuffer = deviceBuffer;
-    GpuTileContext tile{ctx, tileW, tileH, makeBuffer, recordHtSamples};
+    GpuTileContext tile{ctx, tileW, tileH, deviceBuffer, recordHtSamples};
     state->prepareScratch(tile, s);
   }
   if (!fresh.empty())

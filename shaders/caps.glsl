@@ -38,17 +38,23 @@ float capBound(GpuBvhNode n, vec3 origin) {
   return min(1.0, bound);
 }
 
-// Sphere i into the best `count` of at most k, best first (a larger sine,
-// then a lower index). The loops have constant counts, unrolled: llvmpipe
-// allows an invocation 65535 loop iterations in all.
+// Whether sphere i with `sine` ranks before the j-th entry: a larger sine,
+// then a lower index.
+bool capBefore(float sine, uint i, uint j) {
+  return sine > sCapSine[capAt(j)] || (sine == sCapSine[capAt(j)] && i < sCapSphere[capAt(j)]);
+}
+
+// Sphere i into the best `count` of at most k, best first. The loops have
+// constant counts, unrolled: llvmpipe allows an invocation 65535 loop
+// iterations in all.
 void capConsider(uint i, vec3 origin, vec3 normal, uint k, inout uint count) {
   float sine;
   if (!capRank(spheres[i], origin, normal, sine)) return;
-  if (count == k && !(sine > sCapSine[capAt(k - 1u)] || (sine == sCapSine[capAt(k - 1u)] && i < sCapSphere[capAt(k - 1u)]))) return;
+  if (count == k && !capBefore(sine, i, k - 1u)) return;
   // Every entry it precedes moves down one place; it takes the first of them.
   uint at = count == k ? k - 1u : count;
   [[unroll]] for (uint j = HT_MAX_CAPS - 1u; j > 0u; --j) {
-    if (j <= at && (sine > sCapSine[capAt(j - 1u)] || (sine == sCapSine[capAt(j - 1u)] && i < sCapSphere[capAt(j - 1u)]))) {
+    if (j <= at && capBefore(sine, i, j - 1u)) {
       sCapSine[capAt(j)] = sCapSine[capAt(j - 1u)];
       sCapSphere[capAt(j)] = sCapSphere[capAt(j - 1u)];
       at = j - 1u;

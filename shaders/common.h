@@ -263,7 +263,7 @@ struct GpuBvhNode {
   vec3 lo;
   uint skip;
   vec3 hi;
-  uint leaf;  // 0: inner; else first sphere entry << 3 | count (1 to 7)
+  uint leaf;  // 0: inner; else first sphere entry << 3 | count (1 to HT_BVH_LEAF_SIZE)
 };
 
 struct GpuPlane {

@@ -79,12 +79,13 @@ bool rayBox(GpuBvhNode n, vec3 o, vec3 inv, float tMax) {
   return enter <= reach;
 }
 
-// The closest sphere with t in (tMin, tMax) as the linear scan in index
-// order finds it (ties to the lower index), through the BVH where the host
-// uploaded one; its index, or -1, and its t in tMax. The walk only prunes
-// (host/scene.cpp's closestSphere), so any order of the leaves gives the
-// same sphere.
-int closestSphere(Ray ray, float tMin, inout float tMax) {
+// A sphere hit with t in (tMin, tMax) as the linear scan in index order
+// finds it, through the BVH where the host uploaded one: with `first`, the
+// first found (the walk ends there); else the closest, ties to the lower
+// index (host/scene.cpp's closestSphere). Its index, or -1, and its t in
+// tMax. The walk only prunes, so any order of the leaves gives the same
+// sphere.
+int sphereHit(Ray ray, float tMin, inout float tMax, bool first) {
   int best = -1;
   float t;
   if (scene.bvhNodeCount == 0u) {
@@ -92,6 +93,7 @@ int closestSphere(Ray ray, float tMin, inout float tMax) {
       if (hitSphere(spheres[i], ray, tMin, tMax, t)) {
         tMax = t;
         best = int(i);
+        if (first) return best;
       }
     return best;
   }
@@ -113,38 +115,12 @@ int closestSphere(Ray ray, float tMin, inout float tMax) {
       if (hitSphere(spheres[i], ray, tMin, limit, t) && (t < tMax || (t == tMax && i < best))) {
         tMax = t;
         best = i;
+        if (first) return best;
       }
     }
     node = n.skip;
   }
   return best;
-}
-
-// Whether any sphere blocks the ray in (0, inf): the BVH's walk stops at the first.
-bool anySphere(Ray ray) {
-  float t;
-  if (scene.bvhNodeCount == 0u) {
-    for (uint i = 0u; i < scene.sphereCount; ++i)
-      if (hitSphere(spheres[i], ray, 0.0, kInfinity, t)) return true;
-    return false;
-  }
-  precise vec3 inv = 1.0 / ray.dir;
-  uint node = 0u;
-  while (node < scene.bvhNodeCount) {
-    GpuBvhNode n = bvhNodes[node];
-    if (!rayBox(n, ray.origin, inv, kInfinity)) {
-      node = n.skip;
-      continue;
-    }
-    if (n.leaf == 0u) {
-      ++node;
-      continue;
-    }
-    for (uint k = n.leaf >> 3; k < (n.leaf >> 3) + (n.leaf & 7u); ++k)
-      if (hitSphere(spheres[bvhOrder[k]], ray, 0.0, kInfinity, t)) return true;
-    node = n.skip;
-  }
-  return false;
 }
 
 // Nearest hit with t in (tMin, tMax).
@@ -156,7 +132,7 @@ bool intersectScene(Ray ray, float tMin, float tMax, out Hit hit) {
   hit.normal = vec3(0.0);
   hit.material = 0u;
   hit.planar = false;
-  const int sphere = closestSphere(ray, tMin, tMax);
+  const int sphere = sphereHit(ray, tMin, tMax, false);
   if (sphere >= 0) {
     GpuSphere s = spheres[sphere];
     any = true;
@@ -190,8 +166,8 @@ bool occluded(vec3 origin, vec3 dir) {
   Ray ray;
   ray.origin = origin;
   ray.dir = dir;
-  if (anySphere(ray)) return true;
-  float t;
+  float t = kInfinity;
+  if (sphereHit(ray, 0.0, t, true) >= 0) return true;
   for (uint i = 0u; i < scene.planeCount; ++i)
     if (hitPlane(planes[i], ray, 0.0, kInfinity, t)) return true;
   return false;

@@ -188,13 +188,15 @@ TEST(Bvh, CapSpheresAreTheBruteForceRanking) {
           std::sort(ranked.begin(), ranked.end());
           for (size_t j = 0; j < std::min(k, ranked.size()); ++j) expected.push_back(ranked[j].second);
           std::sort(expected.begin(), expected.end());
-          trimmed += ranked.size() > k;
+          trimmed += k == 15 && ranked.size() > k;
         }
         ASSERT_EQ(capSpheres(scene, origin, normal, k), expected) << n << " spheres, point " << p << ", k " << k;
         ASSERT_EQ(capSpheres(scan, origin, normal, k), expected) << n << " spheres, point " << p << ", k " << k;
       }
     }
-    if (n >= 60) EXPECT_GT(trimmed, 100) << n;  // the ranking decides, not the count
+    if (n >= 60) {
+      EXPECT_GT(trimmed, 100) << n;  // at k = 15 the ranking decides, not the count
+    }
   }
 }
 

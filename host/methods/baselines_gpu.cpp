@@ -18,8 +18,8 @@ class CompensatedGpuState : public GpuMethodState {
     if (tree != uploaded_) {
       buffers_.clear();
       std::fill(std::begin(treeAvg_), std::end(treeAvg_), uint64_t(0));
-      uploadChunked(c.ctx, tree->avgv.data(), tree->avgv.size(), sizeof(float), gpu::kTreeChunkElements, buffers_, treeAvg_,
-                    "mis-compensated tree");
+      uploadChunked(c.ctx, tree->avgv.data(), tree->avgv.size(), sizeof(float), gpu::kTreeChunkElements, buffers_,
+                    treeAvg_, "mis-compensated tree");
       uploaded_ = tree;
     }
     std::copy(std::begin(treeAvg_), std::end(treeAvg_), c.scene.treeAvg);

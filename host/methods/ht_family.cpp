@@ -67,13 +67,13 @@ glm::vec3 estimateHtMethod(const Scene& scene, const ShadingPoint& sp, Method me
 void htMemory(const MemoryInputs& in, MethodMemory& m) {
   const uint64_t nodes = MaxAvgTree::levelOffset(in.envOrder + 1);
   m.table("HT node geometry", nodes * 20);
-  if (!in.gpu) m.table("HT node records", nodes * 32);
-  if (in.gpu) {
-    // Geometry; per pixel of a tile its pending samples and recorded leaves.
-    const uint64_t tile =
-        uint64_t(std::min(in.width, HT_MAX_TILE_SIDE)) * uint64_t(std::min(in.height, HT_MAX_TILE_SIDE));
-    m.gpu += nodes * 20 + tile * HT_QUEUE_BYTES;
+  if (!in.gpu) {
+    m.table("HT node records", nodes * 32);
+    return;
   }
+  // Geometry; per pixel of a tile its pending samples and recorded leaves.
+  const uint64_t tile = uint64_t(std::min(in.width, HT_MAX_TILE_SIDE)) * uint64_t(std::min(in.height, HT_MAX_TILE_SIDE));
+  m.gpu += nodes * 20 + tile * HT_QUEUE_BYTES;
 }
 
 void htPush(const RenderSettings& s, gpu::GpuPush& push) {

@@ -15,9 +15,8 @@ extern const MethodSpec kUniform, kCosine, kEnv, kBrdf, kMis, kHt, kHtVis, kHtBi
 
 namespace {
 
-const std::array kRegistry = {&kUniform, &kCosine, &kEnv,  &kBrdf,      &kMis,       &kHt,
-                              &kHtVis,   &kHtBiased, &kHtVisBiased, &kOracle, &kWis, &kWisBiased,
-                              &kTsis,    &kRis,  &kHtFrontier, &kMisCompensated};
+const std::array kRegistry = {&kUniform, &kCosine, &kEnv, &kBrdf, &kMis, &kHt, &kHtVis, &kHtBiased, &kHtVisBiased,
+                              &kOracle, &kWis, &kWisBiased, &kTsis, &kRis, &kHtFrontier, &kMisCompensated};
 
 constexpr const char* kSamplerChoices[] = {"stratified", "independent"};
 const MethodOption kSampler{
