@@ -31,6 +31,7 @@ class Rng;
 struct EstimateCounters;
 struct MemoryInputs;
 struct MethodTables;
+struct RenderResult;
 struct RenderSettings;
 struct Scene;
 struct ShadingPoint;
@@ -42,6 +43,7 @@ enum class Family {
   Oracle,      // the brute-force product, the variance floor
   Competitor,  // the talk's other product samplers (wis, tsis, ris)
   Product,     // fixed-count product sampling derived from HT (ht-frontier)
+  Reuse,       // spatial reuse between pixels (restir, restir-biased)
 };
 
 // Settings of the methods that have any; each field names its method, and
@@ -55,6 +57,9 @@ struct MethodOptions {
   int wisOrder = 5;                              // wis*: HEALPix order of the sampled product (Nside 2^order)
   int frontierRefinements = -1;                  // ht-frontier: most node splits per shading point (< 0: 16 + spp, at most 256)
   bool frontierColourControl = true;             // ht-frontier: the control variate on colour
+  int restirNeighbours = 5;                      // restir*: neighbours k per round
+  int restirRadius = 30;                         // restir*: neighbours within this many pixels in x and y
+  int restirRounds = 2;                          // restir*: rounds r of spatial reuse
   SamplerKind sampler = SamplerKind::Stratified;  // every method: the per-pixel sample points (sampler.h)
 };
 
@@ -99,6 +104,8 @@ struct GpuSupport {
   // Its uploads and scratch (host/gpu_method.h); null: none. Methods with
   // the same factory share one state.
   std::unique_ptr<GpuMethodState> (*makeState)() = nullptr;
+  // One tile, the whole image: its pixels read each other's reservoirs.
+  bool wholeImage = false;
 };
 
 // The loop iterations of one environment sample and its shadow ray, the
@@ -127,6 +134,9 @@ struct MethodSpec {
   // Its tables' and buffers' memory (null: none).
   void (*memory)(const MemoryInputs& in, MethodMemory& out) = nullptr;
   const GpuSupport* gpu = nullptr;  // null: the CPU reference only
+  // A method whose pixels read each other's samples renders the image at
+  // once (into `out`, sized, background filled) and has no `estimate`.
+  void (*renderImage)(const Scene& scene, const RenderSettings& s, RenderResult& out) = nullptr;
 };
 
 // Every method, in the order of their numbers.

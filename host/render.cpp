@@ -27,6 +27,11 @@ RenderResult renderCpu(const Scene& scene, const RenderSettings& s, const Method
   result.image.height = s.height;
   result.image.pixels.assign(size_t(s.width) * s.height, glm::vec3(0.0f));
   if (s.pixelCounts) result.pixelDirections.assign(size_t(s.width) * s.height, 0);
+  if (const auto renderImage = methodSpec(s.method).renderImage) {
+    renderImage(scene, s, result);
+    result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+  }
 
   struct Local {
     EstimateCounters counters;

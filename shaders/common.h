@@ -61,6 +61,8 @@
 #define HT_METHOD_RIS 13
 #define HT_METHOD_HT_FRONTIER 14
 #define HT_METHOD_MIS_COMPENSATED 15
+#define HT_METHOD_RESTIR 16
+#define HT_METHOD_RESTIR_BIASED 17
 #define HT_METHOD_ANY 0xFFFFFFFFu  // pixel.glsl's specialization constant: use GpuPush::method
 #define HT_SPEC_METHOD 0           // its constant_id
 #define HT_SPEC_TEXELS 1           // constant_id of bindings.glsl's kTexels
@@ -161,6 +163,8 @@ enum class Method : uint32_t {
   Ris = HT_METHOD_RIS,
   HtFrontier = HT_METHOD_HT_FRONTIER,
   MisCompensated = HT_METHOD_MIS_COMPENSATED,
+  Restir = HT_METHOD_RESTIR,
+  RestirBiased = HT_METHOD_RESTIR_BIASED,
 };
 }  // namespace ht
 
@@ -183,6 +187,8 @@ layout(buffer_reference) buffer TsisScratch;
 layout(buffer_reference) buffer PixelStates;
 layout(buffer_reference) buffer HtPendingList;
 layout(buffer_reference) buffer FrontierSceneRef;
+layout(buffer_reference) buffer RestirPoints;
+layout(buffer_reference) buffer RestirReservoirs;
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierUints { uint v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierVec3s { vec3 v[]; };
 #if HT_FP64
@@ -239,6 +245,39 @@ struct GpuScene {
   HT_CHUNK_REF(FloatChunk) htBrdfTables;
   // ht-frontier: its tables (GpuFrontierScene); 0 if absent.
   HT_CHUNK_REF(FrontierSceneRef) frontier;
+  // restir*: the image's shading points (GpuRestirPoint per pixel) and two
+  // sets of reservoirs, each GpuRestirReservoir[restirChains][pixels]; 0 if absent.
+  HT_CHUNK_REF(RestirPoints) restirPoints;
+  HT_CHUNK_REF(RestirReservoirs) restirReservoirs[2];
+  uint restirChains;      // reuse chains per group of dispatches, at most
+  uint restirNeighbours;  // k: neighbours per round
+  uint restirRadius;      // neighbours within this many pixels in x and y
+  uint restirRounds;      // r: rounds of spatial reuse
+};
+
+// restir*: the shading point of a pixel that hit the scene (material
+// HT_RESTIR_NO_HIT where its camera ray escaped).
+#define HT_RESTIR_NO_HIT 0xFFFFFFFFu
+#define HT_RESTIR_MAX_NEIGHBOURS 16  // k, at most
+#define HT_RESTIR_MAX_CHAINS 16      // chains per group of dispatches, at most
+struct GpuRestirPoint {
+  vec3 position;
+  uint material;
+  vec3 normal;
+  float depth;  // along the camera's axis
+  vec3 wo;
+  uint planar;  // 1: on a plane
+};
+
+// restir*: one reuse chain's reservoir: the sample kept with the radiance
+// its candidate had (env samples: their HEALPix pixel's, which a lookup of
+// the direction may miss by a rounding), its unbiased contribution weight W
+// and its confidence M (candidates behind it).
+struct GpuRestirReservoir {
+  vec3 dir;
+  float W;
+  vec3 radiance;
+  uint M;
 };
 
 struct GpuMaterial {
@@ -468,6 +507,8 @@ layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierNode
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierHeaders { GpuFrontierHeader v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) buffer FrontierColourNodes { GpuFrontierColour v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 8) buffer FrontierPoints { GpuFrontierPoint v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 4) buffer RestirPoints { GpuRestirPoint v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 4) buffer RestirReservoirs { GpuRestirReservoir v[]; };
 #endif
 
 struct GpuPush {
@@ -505,7 +546,8 @@ struct GpuPush {
 };
 
 #ifdef __cplusplus
-static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 128);
+static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 168);
+static_assert(sizeof(GpuRestirPoint) == 48 && offsetof(GpuRestirPoint, depth) == 28 && sizeof(GpuRestirReservoir) == 32);
 static_assert(sizeof(GpuFrontierNode) == 24 && sizeof(GpuFrontierHeader) == 4 * (HT_FRONTIER_SEGMENTS + 20) &&
               sizeof(GpuFrontierPoint) == 32 && offsetof(GpuFrontierPoint, total) == 16 &&
               sizeof(GpuFrontierColour) == 28);

@@ -57,39 +57,48 @@ RisCandidate risCandidate(Shading sh, inout Sampler smp) {
   return risEvaluate(sh, dir, envEval(dir), environmentPdf(dir));
 }
 
-// estimateRis, samples [begin, end): per sample, `candidates` candidates
-// streamed through a one-element reservoir, one shadow ray for the one kept.
+// RisSampler::sample for sample i: `m` candidates streamed through a
+// one-element reservoir; the one kept and its contribution weight (0: none).
+RisCandidate risSample(Shading sh, uint i, uint m, inout Sampler smp, out accreal weight) {
+  RisCandidate chosen;
+  chosen.dir = vec3(0.0, 1.0, 0.0);
+  chosen.radiance = vec3(0.0);
+  chosen.fcos = vec3(0.0);
+  chosen.mixturePdf = 0.0;
+  chosen.target = 0.0;
+  precise accreal weightSum = 0.0;
+  vec2 draws = vec2(0.0);
+  for (uint k = 0u; k < m; ++k) {
+    // The point of sample i m + k, the draws of sample i.
+    samplerStart(smp, i * m + k);
+    RisCandidate c = risCandidate(sh, smp);
+    precise accreal w = c.target > 0.0 && c.mixturePdf > 0.0 ? accreal(c.target) / accreal(c.mixturePdf) : 0.0;
+    if ((k & 1u) == 0u) {
+      samplerStart(smp, i);
+      smp.dimension = 1u + k / 2u;
+      draws = samplerNextIndependent2D(smp);
+    }
+    float u = (k & 1u) == 0u ? draws.x : draws.y;
+    if (w <= 0.0) continue;
+    weightSum += w;
+    precise accreal scaled = accreal(u) * weightSum;
+    if (scaled < w) chosen = c;
+  }
+  precise accreal contribution = chosen.target > 0.0 ? weightSum / (accreal(m) * accreal(chosen.target)) : 0.0;
+  weight = contribution;
+  return chosen;
+}
+
+// estimateRis, samples [begin, end): per sample, one resampled candidate
+// and one shadow ray for it.
 uint risSamples(Shading sh, uint begin, uint end, uint candidates, inout Sampler smp, inout accvec3 sum,
                 inout uint directions) {
   uint m = max(candidates, 1u);
   uint i = begin;
   for (; i < end; ++i) {
-    RisCandidate chosen;
-    chosen.dir = vec3(0.0, 1.0, 0.0);
-    chosen.radiance = vec3(0.0);
-    chosen.fcos = vec3(0.0);
-    chosen.mixturePdf = 0.0;
-    chosen.target = 0.0;
-    precise accreal weightSum = 0.0;
-    vec2 draws = vec2(0.0);
-    for (uint k = 0u; k < m; ++k) {
-      // RisSampler::sample: the point of sample i m + k, the draws of sample i.
-      samplerStart(smp, i * m + k);
-      RisCandidate c = risCandidate(sh, smp);
-      precise accreal w = c.target > 0.0 && c.mixturePdf > 0.0 ? accreal(c.target) / accreal(c.mixturePdf) : 0.0;
-      if ((k & 1u) == 0u) {
-        samplerStart(smp, i);
-        smp.dimension = 1u + k / 2u;
-        draws = samplerNextIndependent2D(smp);
-      }
-      float u = (k & 1u) == 0u ? draws.x : draws.y;
-      if (w <= 0.0) continue;
-      weightSum += w;
-      precise accreal scaled = accreal(u) * weightSum;
-      if (scaled < w) chosen = c;
-    }
+    accreal weight;
+    RisCandidate chosen = risSample(sh, i, m, smp, weight);
     directions += m;
-    precise accreal weight = chosen.target > 0.0 ? weightSum / (accreal(m) * accreal(chosen.target)) : 0.0;
     if (!(weight > 0.0)) continue;
     ++gShadowRays;
     if (!occluded(sh.origin, chosen.dir)) {

@@ -106,7 +106,7 @@ RenderSettings settings(Method method, int spp, uint32_t seed, int width = 80, i
 
 std::vector<std::string> spirvFiles() {
   std::vector<std::string> files;
-  for (const char* name : {"baselines", "ht", "competitors", "frontier", "healpix_test"})
+  for (const char* name : {"baselines", "ht", "competitors", "frontier", "restir", "healpix_test"})
     for (const char* variant : {"fp64", "fp32"}) files.push_back(kShaderDir + "/" + name + "." + variant + ".spv");
   return files;
 }
@@ -554,6 +554,51 @@ INSTANTIATE_TEST_SUITE_P(HtThresholds, GpuOtherSeedsFp32Slow,
                            std::replace(name.begin(), name.end(), '-', '_');
                            return name;
                          });
+
+// restir in float: other rounding of W and the weights, the same estimator (slow tier).
+INSTANTIATE_TEST_SUITE_P(Reuse, GpuOtherSeedsFp32Slow, ::testing::Values(Method::Restir, Method::RestirBiased),
+                         [](const auto& info) {
+                           std::string name = methodName(info.param);
+                           std::replace(name.begin(), name.end(), '-', '_');
+                           return name;
+                         });
+
+// ---------------------------------------------------------------- restir
+
+// The whole image is one tile whatever the tile limit, and chains run in
+// groups of at most the batch limit: with groups of 3 chains, on an image
+// whose sides are no multiple of the workgroup, every pixel's count and
+// value are the CPU's for the same seed.
+TEST(GpuRestir, GroupsOfChainsMatchTheCpu) {
+  GpuOptions o = gpuOptions();
+  o.maxTileSide = 16;
+  o.batchLimit = 3;
+  GpuRenderer gpu(o);
+  if (!gpu.float64()) GTEST_SKIP() << "device without shaderFloat64";
+  gpu.setScene(testScene());
+  for (Method m : {Method::Restir, Method::RestirBiased}) {
+    RenderSettings rs = settings(m, 10, 5, 37, 21);
+    rs.options.restirRadius = 5;
+    rs.pixelCounts = true;
+    const GpuRenderResult g = gpu.render(rs);
+    const RenderResult cpu = renderCpu(testScene(), rs);
+    EXPECT_EQ(g.tiles, 1);
+    EXPECT_EQ(g.result.counters.directions, cpu.counters.directions);
+    EXPECT_EQ(g.result.counters.shadowRays, cpu.counters.shadowRays);
+    EXPECT_EQ(g.result.pixelDirections, cpu.pixelDirections);
+    double worst = 0.0;
+    for (size_t i = 0; i < cpu.image.pixels.size(); ++i)
+      for (int k = 0; k < 3; ++k) {
+        const double a = g.result.image.pixels[i][k], b = cpu.image.pixels[i][k];
+        worst = std::max(worst, std::fabs(a - b) / (std::fabs(b) + 1e-9));
+      }
+    std::printf("[ restir   ] %s: largest relative difference %.1e\n", methodName(m), worst);
+    // The reuse weights are ratios of BRDF values at several points, whose
+    // pow and sqrt differ in their last bits between the devices.
+    EXPECT_LT(worst, 1e-3) << methodName(m);
+  }
+  expectNoValidationMessages();
+}
 
 // ---------------------------------------------------------------- HT
 

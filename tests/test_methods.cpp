@@ -20,11 +20,11 @@ TEST(Methods, RegistryHoldsEveryNumberOnceInOrder) {
     EXPECT_TRUE(names.insert(m.name).second) << "two methods named " << m.name;
     EXPECT_EQ(parseMethod(m.name), m.method);
     EXPECT_EQ(&methodSpec(m.method), &m);
-    EXPECT_NE(m.estimate, nullptr) << m.name;
+    EXPECT_TRUE((m.estimate != nullptr) != (m.renderImage != nullptr)) << m.name;
     EXPECT_GE(m.directionsPerSample, 1) << m.name;
   }
   // The shaders' numbers: the last one names the registry's size.
-  EXPECT_EQ(allMethods().size(), size_t(HT_METHOD_MIS_COMPENSATED) + 1);
+  EXPECT_EQ(allMethods().size(), size_t(HT_METHOD_RESTIR_BIASED) + 1);
   EXPECT_FALSE(parseMethod("no-such-method"));
 }
 

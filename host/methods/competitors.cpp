@@ -15,6 +15,10 @@
 #include "wis.h"
 
 namespace ht {
+const MethodOption kRisCandidates{
+    "--ris-candidates", "ris_candidates", "ris, restir*: candidates M per resampled sample (restir*: per chain)", {}, 1,
+    4096, [](const MethodOptions& o) { return o.risCandidates; }, [](MethodOptions& o, int v) { o.risCandidates = v; }};
+
 namespace {
 
 static_assert(TsisPoint::kDefaultRegions == HT_TSIS_REGIONS && TsisTable::kMaxLevel == HT_TSIS_MAX_LEVEL);
@@ -32,10 +36,7 @@ const MethodOption kWisOptions[] = {
      {}, 0, WisPoint::kMaxOrder, [](const MethodOptions& o) { return o.wisOrder; },
      [](MethodOptions& o, int v) { o.wisOrder = v; }},
 };
-const MethodOption kRisOptions[] = {
-    {"--ris-candidates", "ris_candidates", "ris: candidates M per resampled sample", {}, 1, 4096,
-     [](const MethodOptions& o) { return o.risCandidates; }, [](MethodOptions& o, int v) { o.risCandidates = v; }},
-};
+const MethodOption kRisOptions[] = {kRisCandidates};
 
 int wisOrder(const RenderSettings& s, int envOrder) {
   return std::clamp(s.options.wisOrder, 0, std::min(envOrder, HT_WIS_MAX_ORDER));

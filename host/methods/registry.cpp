@@ -11,12 +11,13 @@
 namespace ht {
 
 extern const MethodSpec kUniform, kCosine, kEnv, kBrdf, kMis, kHt, kHtVis, kHtBiased, kHtVisBiased, kOracle, kWis,
-    kWisBiased, kTsis, kRis, kHtFrontier, kMisCompensated;
+    kWisBiased, kTsis, kRis, kHtFrontier, kMisCompensated, kRestir, kRestirBiased;
 
 namespace {
 
 const std::array kRegistry = {&kUniform, &kCosine, &kEnv, &kBrdf, &kMis, &kHt, &kHtVis, &kHtBiased, &kHtVisBiased,
-                              &kOracle, &kWis, &kWisBiased, &kTsis, &kRis, &kHtFrontier, &kMisCompensated};
+                              &kOracle, &kWis, &kWisBiased, &kTsis, &kRis, &kHtFrontier, &kMisCompensated,
+                              &kRestir, &kRestirBiased};
 
 constexpr const char* kSamplerChoices[] = {"stratified", "independent"};
 const MethodOption kSampler{
@@ -64,6 +65,7 @@ const char* familyName(Family f) {
     case Family::Oracle: return "oracle";
     case Family::Competitor: return "competitor";
     case Family::Product: return "product";
+    case Family::Reuse: return "spatial reuse";
   }
   return "?";
 }

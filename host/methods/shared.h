@@ -14,6 +14,10 @@ std::unique_ptr<GpuMethodState> makeCompensatedGpuState();  // baselines_gpu.cpp
 std::unique_ptr<GpuMethodState> makeHtGpuState();           // ht_gpu.cpp
 std::unique_ptr<GpuMethodState> makeCompetitorGpuState();   // competitors_gpu.cpp
 std::unique_ptr<GpuMethodState> makeFrontierGpuState();     // frontier_gpu.cpp
+std::unique_ptr<GpuMethodState> makeRestirGpuState();       // reuse_gpu.cpp
+
+// --ris-candidates, which restir* shares (competitors.cpp).
+extern const MethodOption kRisCandidates;
 
 // The shaders hold HT_MAX_CAPS visibility caps per shading point, every
 // plane's and the largest spheres' (capSpheres): a method whose density has
