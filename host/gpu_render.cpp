@@ -305,7 +305,6 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.scene = gs;
   m.sceneFields = gs;
   m.sceneTexels = m.texelBuffers;
-  m.boundTexels = m.texelBuffers;
   m.envOrder = env.order;
   m.materialCount = scene.materials.size();
   m.occluders = scene.spheres.size() + scene.planes.size();
@@ -521,13 +520,13 @@ void GpuRenderer::Impl::uploadTables(const RenderSettings& s, const MethodTables
     GpuUploadContext c{ctx, *hostScene, next, texelBuffers, usesFloat64(s.method), envOrder, materialCount};
     state->upload(c, s, t);
   }
-  bool texelsChanged = false;
-  for (const auto& [binding, b] : texelBuffers) texelsChanged = texelsChanged || boundTexels[binding].buffer != b.buffer;
-  if (std::memcmp(&next, &scene, sizeof(GpuScene)) == 0 && !texelsChanged) return;
-  scene = next;
-  sceneBuffer.upload(&scene, sizeof(scene));
+  if (std::memcmp(&next, &scene, sizeof(GpuScene)) != 0) {
+    scene = next;
+    sceneBuffer.upload(&scene, sizeof(scene));
+  }
+  // Always: a method's new buffer may take a freed one's place in memory,
+  // so that neither its address nor its object tells that its view is new.
   bindScene();
-  boundTexels = texelBuffers;
 }
 
 GpuPush GpuRenderer::Impl::tilePush(const RenderSettings& s, uint32_t x, uint32_t y, uint32_t tileW, uint32_t tileH) {

@@ -57,10 +57,9 @@ struct GpuRenderer::Impl {
       {HT_BINDING_HT_CONES_TEXELS, {VK_FORMAT_R32_SFLOAT}},        {HT_BINDING_FRONTIER_CHROMA_TEXELS, {VK_FORMAT_R32_SFLOAT}},
       {HT_BINDING_FRONTIER_CENTROID_TEXELS, {VK_FORMAT_R32_SFLOAT}}, {HT_BINDING_FRONTIER_BINS_TEXELS, {VK_FORMAT_R32_UINT}}};
   // The scene's own (setScene's), which each render starts from before its
-  // method fills its part; what was last uploaded and bound.
+  // method fills its part.
   std::map<uint32_t, TexelBinding> sceneTexels;
   GpuScene sceneFields{};
-  std::map<uint32_t, TexelBinding> boundTexels;
   std::map<VkFormat, vk::Buffer> placeholders;
   // Per tile.
   // The shaders write each pixel's result on the device; one copy per

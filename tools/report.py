@@ -315,7 +315,27 @@ def efficiency_table(rows, spp=16):
             cells.append("-" if v is None else f"**{v:.2f}**" if v == best[s] else f"{v:.2f}")
         md.append(f"| {m} | " + " | ".join(cells) + " |")
     md.append("")
+    md += peers_ahead(ratio, scenes, methods)
     return md
+
+
+PEERS = ("mis-compensated", "ris", "restir", "restir-biased", "wis", "tsis")  # what users reach for, and the talk's
+
+
+def peers_ahead(ratio, scenes, methods, product="ht-frontier"):
+    """The scenes where a peer beats the product method at equal time (docs/competitors.md says why)."""
+    ahead = []
+    for s in scenes:
+        p = ratio.get((s, product))
+        if p is None:
+            continue
+        for m in methods:
+            v = ratio.get((s, m))
+            if m in PEERS and v is not None and v > p:
+                ahead.append(f"{s}: `{m}` {v:.2f}x against `{product}`'s {p:.2f}x")
+    if not ahead:
+        return [f"No peer beats `{product}` at equal time in these scenes.", ""]
+    return [f"Where a peer beats `{product}` at equal time (why: docs/competitors.md): " + "; ".join(ahead) + ".", ""]
 
 
 def real_gpu_section(data, source):
