@@ -15,7 +15,8 @@
 namespace ht {
 
 RestirOptions restirOptionsFor(Method method, const MethodOptions& o) {
-  return {o.risCandidates, o.restirNeighbours, o.restirRadius, o.restirRounds, method == Method::Restir};
+  return {std::max(o.risCandidates, 1), std::clamp(o.restirNeighbours, 0, HT_RESTIR_MAX_NEIGHBOURS),
+          std::max(o.restirRadius, 1), std::max(o.restirRounds, 0), method == Method::Restir};
 }
 
 RestirPoint restirPoint(const Scene& scene, int width, int height, int x, int y) {
