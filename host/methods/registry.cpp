@@ -65,7 +65,7 @@ const char* familyName(Family f) {
     case Family::Oracle: return "oracle";
     case Family::Competitor: return "competitor";
     case Family::Product: return "product";
-    case Family::Reuse: return "spatial reuse";
+    case Family::Reuse: return "reuse";
   }
   return "?";
 }

@@ -1,5 +1,5 @@
-// Spatial reuse between pixels: restir (unbiased, 1 / Z with visibility)
-// and restir-biased (1 / sum M), host/restir.h.
+// Spatial reuse between pixels: restir (unbiased, the generalized balance
+// heuristic) and restir-biased (1 / sum M), host/restir.h.
 #include <algorithm>
 
 #include "memory.h"
@@ -17,7 +17,7 @@ const MethodOption kRestirOptions[] = {
      [](MethodOptions& o, int v) { o.restirNeighbours = v; }},
     {"--restir-radius", "restir_radius", "restir*: neighbours within this many pixels in x and y", {}, 1, 1024,
      [](const MethodOptions& o) { return o.restirRadius; }, [](MethodOptions& o, int v) { o.restirRadius = v; }},
-    {"--restir-rounds", "restir_rounds", "restir*: rounds r of spatial reuse (0: ris with visibility reuse)", {}, 0, 8,
+    {"--restir-rounds", "restir_rounds", "restir*: rounds r of spatial reuse (0: ris)", {}, 0, 8,
      [](const MethodOptions& o) { return o.restirRounds; }, [](MethodOptions& o, int v) { o.restirRounds = v; }},
 };
 
@@ -48,11 +48,11 @@ const GpuSupport kRestirGpu{
 
 using enum Family;
 extern const MethodSpec kRestir{Method::Restir, "restir",
-                                "ReSTIR spatial reuse of ris reservoirs between pixels, unbiased (1/Z with visibility)",
+                                "ReSTIR spatial reuse of ris reservoirs between pixels, generalized balance heuristic (unbiased)",
                                 Reuse, false, false, 1, kRestirOptions, nullptr, nullptr, restirMemory, &kRestirGpu,
                                 renderRestir};
 extern const MethodSpec kRestirBiased{Method::RestirBiased, "restir-biased",
-                                      "restir normalised by 1/sum M, no visibility in the reuse", Reuse, true, false, 1,
+                                      "restir by 1/sum M with visibility reuse (Bitterli's biased combination)", Reuse, true, false, 1,
                                       kRestirOptions, nullptr, nullptr, restirMemory, &kRestirGpu, renderRestir};
 
 }  // namespace ht
