@@ -1125,6 +1125,20 @@ TEST(GpuFrontier, StressScenesMatchTheCpu) {
   }
 }
 
+// restir and restir-biased on every stress scene: every pixel draws the
+// CPU's count, and the values agree as ht-frontier's do.
+TEST(GpuRestir, StressScenesMatchTheCpu) {
+  GpuRenderer gpu(gpuOptions());
+  if (!gpu.float64()) GTEST_SKIP() << "device without shaderFloat64";
+  for (Method m : {Method::Restir, Method::RestirBiased})
+    for (const StressComparison& c : compareOnStressScenes(gpu, m, 16)) {
+      EXPECT_EQ(c.countDiffers, 0u) << c.scene;
+      EXPECT_EQ(c.gpuShaded, c.cpuShaded) << c.scene;
+      EXPECT_LE(c.valueDiffers, c.pixels / 50) << c.scene;
+      EXPECT_LT(std::fabs(c.gpuSum - c.cpuSum), 1e-4 * c.cpuSum) << c.scene;
+    }
+}
+
 // The seed's methods accept the CPU's candidates on every stress scene too
 // (the sun's leaves of pixel-sun-1e6 accept far more candidates than the
 // pending list holds). Every pixel draws the CPU's count of directions, and
