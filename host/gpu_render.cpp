@@ -334,17 +334,16 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
 // most scratchBudget); their buffers.
 std::pair<uint32_t, uint32_t> GpuRenderer::Impl::prepareTiles(const RenderSettings& s) {
   uint32_t side = std::min(maxTileSide, methodSpec(s.method).gpu->maxTileSide);
-  if (methodSpec(s.method).gpu->wholeImage) {
-    side = uint32_t(std::max(s.width, s.height));
-    side = (side + kWorkgroupSize - 1) / kWorkgroupSize * kWorkgroupSize;
-  }
   GpuMethodState* state = methodState(s.method);
   const uint64_t scratch = state ? state->scratchBytesPerPixel(s) : 0;
-  while (!methodSpec(s.method).gpu->wholeImage && side > kWorkgroupSize &&
-         uint64_t(side) * side * directionsPerPixel(s) > directionsPerDispatch(ctx.info))
-    side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
-  while (scratch > 0 && side > kWorkgroupSize && uint64_t(side) * side * scratch > scratchBudget(ctx.info))
-    side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
+  if (methodSpec(s.method).gpu->wholeImage) {
+    side = (uint32_t(std::max(s.width, s.height)) + kWorkgroupSize - 1) / kWorkgroupSize * kWorkgroupSize;
+  } else {
+    while (side > kWorkgroupSize && uint64_t(side) * side * directionsPerPixel(s) > directionsPerDispatch(ctx.info))
+      side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
+    while (scratch > 0 && side > kWorkgroupSize && uint64_t(side) * side * scratch > scratchBudget(ctx.info))
+      side = std::max(kWorkgroupSize, side / 2 / kWorkgroupSize * kWorkgroupSize);
+  }
   const uint32_t tileW = std::min<uint32_t>(side, uint32_t(s.width));
   const uint32_t tileH = std::min<uint32_t>(side, uint32_t(s.height));
   const VkDeviceSize tilePixels = VkDeviceSize(tileW) * tileH;

@@ -1,7 +1,6 @@
 #include "restir.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 
 #include <glm/geometric.hpp>

@@ -166,7 +166,8 @@ void main() {
   uint x = pc.tileX + gl_GlobalInvocationID.x, y = pc.tileY + gl_GlobalInvocationID.y;
   uint self = y * pc.width + x;
   uint pixelCount = pc.width * pc.height;
-  if (pc.batch == 0u) scene.restirPoints.v[self] = restirPointOf(job);
+  GpuRestirPoint q = restirPointOf(job);
+  if (pc.batch == 0u) scene.restirPoints.v[self] = q;
   if (job.shade && gPixel.done == 0u) {
     uint passes = scene.restirRounds + 2u;
     uint pass = pc.batch % passes;
@@ -181,7 +182,6 @@ void main() {
         scene.restirReservoirs[0].v[slot] = restirInitial(job.sh, c, smp, gPixel.directions);
       } else if (pass <= scene.restirRounds) {
         uint seed = hashCombine(hashCombine(pc.seed, 0x52535452u + pass), c);
-        GpuRestirPoint q = restirPointOf(job);
         scene.restirReservoirs[pass & 1u].v[slot] =
             restirRound(job.sh, q, x, y, c - begin, scene.restirReservoirs[(pass - 1u) & 1u], seed);
       } else {

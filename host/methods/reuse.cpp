@@ -25,7 +25,9 @@ uint64_t candidates(const RenderSettings& s) { return uint64_t(std::max(s.option
 
 void restirMemory(const MemoryInputs& in, MethodMemory& m) {
   const uint64_t pixels = uint64_t(in.width) * uint64_t(in.height);
-  m.table("restir points and reservoirs", pixels * (sizeof(RestirPoint) + 2 * sizeof(Reservoir) + 4 + 24 + 24));
+  // renderRestir's arrays: points, two reservoirs, sampler seeds, sums, counters.
+  m.table("restir points and reservoirs", pixels * (sizeof(RestirPoint) + 2 * sizeof(Reservoir) + sizeof(uint32_t) +
+                                                    sizeof(glm::dvec3) + sizeof(EstimateCounters)));
   if (in.gpu) m.gpu += pixels * (sizeof(RestirPoint) + 2 * HT_RESTIR_MAX_CHAINS * sizeof(Reservoir));
 }
 
@@ -38,7 +40,7 @@ const GpuSupport kRestirGpu{
       return std::max(candidates(s) * gpuDescentCost(envOrder, shapes) + shapes, k * (2 * shapes + 8));
     },
     .directionsPerPixel = [](const RenderSettings& s) { return uint64_t(std::max(s.spp, 1)) * candidates(s); },
-    .stepsPerSample = 4,
+    .stepsPerSample = 4,  // r + 2 passes per group of chains, r = 2 by default
     .push = [](const RenderSettings& s, gpu::GpuPush& push) { push.risCandidates = uint32_t(candidates(s)); },
     .makeState = makeRestirGpuState,
     .wholeImage = true,

@@ -4,6 +4,7 @@
 
 #include "gpu_method.h"
 #include "render.h"
+#include "restir.h"
 #include "shared.h"
 
 namespace ht {
@@ -34,10 +35,11 @@ class RestirGpuState : public GpuMethodState {
     c.scene.restirPoints = points_.address();
     c.scene.restirReservoirs[0] = reservoirs_[0].address();
     c.scene.restirReservoirs[1] = reservoirs_[1].address();
+    const RestirOptions o = restirOptionsFor(s.method, s.options);
     c.scene.restirChains = uint32_t(chains);
-    c.scene.restirNeighbours = uint32_t(std::clamp(s.options.restirNeighbours, 0, HT_RESTIR_MAX_NEIGHBOURS));
-    c.scene.restirRadius = uint32_t(std::max(s.options.restirRadius, 1));
-    c.scene.restirRounds = uint32_t(std::max(s.options.restirRounds, 0));
+    c.scene.restirNeighbours = uint32_t(o.neighbours);
+    c.scene.restirRadius = uint32_t(o.radius);
+    c.scene.restirRounds = uint32_t(o.rounds);
   }
 
  private:
