@@ -52,6 +52,39 @@ EnvSample sampleEnvironment(const Environment& env, const MaxAvgTree& t, glm::dv
   return s;
 }
 
+int pickRescaled4(const float* w, double& u, float& prob) { return pickRescaled<4>(w, u, prob); }
+
+EnvSample sampleEnvironmentBelow(const Environment& env, const MaxAvgTree& t, int level, uint64_t node,
+                                 glm::dvec2 u) {
+  if (!(t.avg(level, node) > 0.0f)) return {glm::vec3(0.0f, 1.0f, 0.0f), 0, 0.0f};
+  double x = u.x;
+  double p = 1.0;
+  for (int l = level + 1; l <= t.order; ++l) {
+    float prob;
+    uint64_t first = 4 * node;
+    node = first + uint64_t(pickRescaled<4>(&t.avgv[MaxAvgTree::levelOffset(l) + first], x, prob));
+    p *= prob;
+  }
+  EnvSample s;
+  s.pixel = node;
+  s.dir = env.direction(env.order, node, std::min(float(x), kBelowOneF), std::min(float(u.y), kBelowOneF));
+  s.pdf = float(p / env.pixelSolidAngle());
+  return s;
+}
+
+double environmentPixelProbabilityBelow(const MaxAvgTree& t, int level, uint64_t pixel) {
+  double p = 1.0;
+  for (int l = t.order; l > level; --l) {
+    const float* siblings = &t.avgv[MaxAvgTree::levelOffset(l) + (pixel & ~uint64_t(3))];
+    float sum = siblings[0] + siblings[1] + siblings[2] + siblings[3];
+    float w = siblings[pixel & 3];
+    if (w <= 0.0f) return 0.0;
+    p *= double(w / sum);
+    pixel >>= 2;
+  }
+  return p;
+}
+
 double environmentPixelProbability(const Environment& env, uint64_t pixel) {
   return environmentPixelProbability(env.tree, pixel);
 }

@@ -34,6 +34,17 @@ EnvSample sampleEnvironment(const Environment& env, const MaxAvgTree& tree, glm:
 float environmentPdf(const Environment& env, const MaxAvgTree& tree, const glm::vec3& dir);
 double environmentPixelProbability(const MaxAvgTree& tree, uint64_t pixel);
 
+// The same below node `node` of `level`: children by the average tree from
+// there down (pdf: the leaf's probability inside the node over its solid
+// angle; 0 for a black node), and a leaf's probability inside its ancestor
+// of `level`.
+EnvSample sampleEnvironmentBelow(const Environment& env, const MaxAvgTree& tree, int level, uint64_t node,
+                                 glm::dvec2 u);
+double environmentPixelProbabilityBelow(const MaxAvgTree& tree, int level, uint64_t pixel);
+// Child j of four weights with probability w[j] / sum (prob), u rescaled
+// into [0, 1) inside the pick.
+int pickRescaled4(const float* w, double& u, float& prob);
+
 // MIS compensation (Karlik et al. 2019): the tree of max(0, L_lum - mean
 // L_lum) over the map's pixels, which leaves to BRDF sampling the
 // directions no brighter than average.

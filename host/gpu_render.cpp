@@ -66,6 +66,9 @@ constexpr vk::BindingLayout kBindings[] = {
     {HT_BINDING_FRONTIER_BINS_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
     {HT_BINDING_BVH_NODES, 0, sizeof(GpuBvhNode)},
     {HT_BINDING_BVH_ORDER, 0, sizeof(uint32_t)},
+    {HT_BINDING_CUT_MOMENT_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_CUT_RECORD_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_CUT_LOOKUP_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
 };
 static_assert(std::size(kBindings) == HT_BINDING_COUNT);
 
@@ -206,7 +209,7 @@ void GpuRenderer::Impl::bindScene() {
     vk::Buffer* buffer = texels ? t.buffer : nullptr;
     if (!buffer) {
       buffer = &placeholders[t.format];
-      if (!buffer->handle()) *buffer = vk::Buffer(ctx, 4, vk::MemoryUse::DeviceLocal);
+      if (!buffer->handle()) *buffer = vk::Buffer(ctx, 16, vk::MemoryUse::DeviceLocal);  // one texel of the widest format
     }
     pipeline->setTexelBuffer(binding, buffer->texelView(t.format));
   }

@@ -35,6 +35,9 @@ layout(set = 0, binding = HT_BINDING_HT_CONES_TEXELS) uniform samplerBuffer htCo
 layout(set = 0, binding = HT_BINDING_FRONTIER_CHROMA_TEXELS) uniform samplerBuffer frontierChromaTexels;
 layout(set = 0, binding = HT_BINDING_FRONTIER_CENTROID_TEXELS) uniform samplerBuffer frontierCentroidTexels;
 layout(set = 0, binding = HT_BINDING_FRONTIER_BINS_TEXELS) uniform usamplerBuffer frontierBinsTexels;
+layout(set = 0, binding = HT_BINDING_CUT_MOMENT_TEXELS) uniform samplerBuffer cutMomentTexels;
+layout(set = 0, binding = HT_BINDING_CUT_RECORD_TEXELS) uniform samplerBuffer cutRecordTexels;
+layout(set = 0, binding = HT_BINDING_CUT_LOOKUP_TEXELS) uniform usamplerBuffer cutLookupTexels;
 
 // Element i of a texel view of vec3s or vec2s stored as floats.
 vec3 texelVec3(samplerBuffer b, uint i) {

@@ -33,8 +33,11 @@
 #define HT_BINDING_FRONTIER_BINS_TEXELS 12      // ht-frontier: colour bins, four per uint (R32_UINT)
 #define HT_BINDING_BVH_NODES 13  // GpuBvhNode[]: the spheres' BVH (host/bvh.h), depth first
 #define HT_BINDING_BVH_ORDER 14  // uint[]: its sphere indices, leaf by leaf
+#define HT_BINDING_CUT_MOMENT_TEXELS 15  // ht-cut: EnvCut::moment (R32_SFLOAT, three per node)
+#define HT_BINDING_CUT_RECORD_TEXELS 16  // ht-cut: GpuScene::cutRecord (R32G32B32A32_SFLOAT)
+#define HT_BINDING_CUT_LOOKUP_TEXELS 17  // ht-cut: EnvCut::lookup (R32_UINT)
 #define HT_BVH_LEAF_SIZE 4       // spheres per leaf, at most (kBvhLeafSize)
-#define HT_BINDING_COUNT 15
+#define HT_BINDING_COUNT 18
 
 // Chunked arrays: element i lives in chunk i >> SHIFT at i & (2^SHIFT - 1).
 #define HT_MAX_CHUNKS 128
@@ -63,6 +66,7 @@
 #define HT_METHOD_MIS_COMPENSATED 15
 #define HT_METHOD_RESTIR 16
 #define HT_METHOD_RESTIR_BIASED 17
+#define HT_METHOD_HT_CUT 18
 #define HT_METHOD_ANY 0xFFFFFFFFu  // pixel.glsl's specialization constant: use GpuPush::method
 #define HT_SPEC_METHOD 0           // its constant_id
 #define HT_SPEC_TEXELS 1           // constant_id of bindings.glsl's kTexels
@@ -111,6 +115,14 @@
 // plane), GpuFrontierPoint::table of a point with a table of its own, and
 // GpuFrontierScene::flags.
 #define HT_FRONTIER_SEGMENTS 192
+// ht-cut: its cut's nodes lie at this level or above, and there are at most
+// this many.
+#define HT_CUT_MAX_LEVEL 7
+#define HT_CUT_MAX_NODES 512
+#define HT_CUT_HORIZON_FLOOR 0.0625  // kCutHorizonFloor (exact in float)
+#define HT_CUT_MIN_SHARE 0.125       // kCutMinShare (exact in float)
+#define HT_CUT_VISIBILITY 1u
+#define HT_CUT_COLOUR_CONTROL 2u
 #define HT_FRONTIER_LANES 8  // ht-frontier's scratch: blocks of 8 pixels of a tile row, element by element
 #define HT_FRONTIER_MAX_SHARED 32
 // ht-frontier: the level of the environment's average around the mirror
@@ -165,6 +177,7 @@ enum class Method : uint32_t {
   MisCompensated = HT_METHOD_MIS_COMPENSATED,
   Restir = HT_METHOD_RESTIR,
   RestirBiased = HT_METHOD_RESTIR_BIASED,
+  HtCut = HT_METHOD_HT_CUT,
 };
 }  // namespace ht
 
@@ -178,6 +191,8 @@ using uvec2 = glm::uvec2;
 layout(buffer_reference, scalar, buffer_reference_align = 4) readonly buffer Vec3Chunk { vec3 v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) readonly buffer Vec2Chunk { vec2 v[]; };
 layout(buffer_reference, scalar, buffer_reference_align = 4) readonly buffer FloatChunk { float v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 4) readonly buffer UintChunk { uint v[]; };
+layout(buffer_reference, scalar, buffer_reference_align = 4) readonly buffer Vec4Chunk { vec4 v[]; };
 #if HT_FP64
 layout(buffer_reference, scalar, buffer_reference_align = 8) readonly buffer DoubleChunk { double v[]; };
 #else
@@ -253,6 +268,29 @@ struct GpuScene {
   uint restirNeighbours;  // k: neighbours per round
   uint restirRadius;      // neighbours within this many pixels in x and y
   uint restirRounds;      // r: rounds of spatial reuse
+  // ht-cut (host/ht_cut.h): the tree's first moments down to cutMomentLevel
+  // (EnvCut::moment); cutRecord: four vec4 per node a point weighs in its
+  // loop over the cut, the K nodes then each one's four children (centre,
+  // sine of its disc's radius; moment, power; chroma, cos of its bounding
+  // radius; its sine, the disc's chord radius, level and index in the
+  // tree's layout as floats); the lookup (EnvCut::lookup); 0 if absent.
+  HT_CHUNK_REF(Vec3Chunk) cutMoment;
+  HT_CHUNK_REF(Vec4Chunk) cutRecord;
+  HT_CHUNK_REF(UintChunk) cutLookup;
+  uint cutCount;         // K
+  uint cutLookupLevel;
+  uint cutMomentLevel;
+  uint cutProductLevel;  // CutOptions::productLevel, at most cutMomentLevel
+  uint cutFlags;         // HT_CUT_VISIBILITY, HT_CUT_COLOUR_CONTROL
+  float cutBrdfShare;    // CutOptions::brdfShare
+  float cutMinPartial;   // CutOptions::minPartialVisibility
+  float cutCapCosMargin, cutCapSinMargin;  // cos and sin of kCapMargin
+  uint cutReserved;
+  float cutDiscSin[32];    // EnvCut::discSin
+  float cutDiscChord[32];  // EnvCut::discChord
+  float cutOmega[32];      // EnvCut::omega
+  float cutLevelCos[32];   // HtGeometry::levelCosRadius
+  float cutLevelSin[32];   // HtGeometry::levelSinRadius
 };
 
 // restir*: the shading point of a pixel that hit the scene (material
@@ -546,7 +584,7 @@ struct GpuPush {
 };
 
 #ifdef __cplusplus
-static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 168);
+static_assert(sizeof(GpuScene) == 5 * 8 * HT_MAX_CHUNKS + 4 * 32 + 168 + 3 * 8 + 4 * 10 + 5 * 4 * 32);
 static_assert(sizeof(GpuRestirPoint) == 48 && offsetof(GpuRestirPoint, depth) == 28 && sizeof(GpuRestirReservoir) == 32);
 static_assert(sizeof(GpuFrontierNode) == 24 && sizeof(GpuFrontierHeader) == 4 * (HT_FRONTIER_SEGMENTS + 20) &&
               sizeof(GpuFrontierPoint) == 32 && offsetof(GpuFrontierPoint, total) == 16 &&

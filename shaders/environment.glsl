@@ -105,6 +105,45 @@ EnvSample sampleEnvironment(hreal ux, hreal uy) {
   return s;
 }
 
+// sampleEnvironmentBelow: below node `node` of `level`, by the average tree.
+EnvSample sampleEnvironmentBelow(uint level, uint node, hreal ux, hreal uy) {
+  EnvSample s;
+  s.dir = vec3(0.0, 1.0, 0.0);
+  s.pixel = 0u;
+  s.pdf = 0.0;
+  if (!(treeAvg(levelOffset(level) + node) > 0.0)) return s;
+  hreal x = ux;
+  precise hreal p = 1.0;
+  for (uint l = level + 1u; l <= scene.envOrder; ++l) {
+    float prob;
+    uint first = 4u * node;
+    node = first + pickRescaled(levelOffset(l) + first, 4u, x, prob);
+    p *= hreal(prob);
+  }
+  const float kBelowOneF = uintBitsToFloat(0x3f7fffffu);
+  s.pixel = node;
+  s.dir = envDirection(scene.envOrder, node, min(float(x), kBelowOneF), min(float(uy), kBelowOneF));
+  precise hreal pdf = p / envPixelSolidAngle();
+  s.pdf = float(pdf);
+  return s;
+}
+
+// environmentPixelProbabilityBelow: a leaf's probability inside its
+// ancestor of `level`.
+hreal environmentPixelProbabilityBelow(uint level, uint pixel) {
+  precise hreal p = 1.0;
+  for (uint l = scene.envOrder; l > level; --l) {
+    uint first = levelOffset(l) + (pixel & ~3u);
+    precise float sum = treeAvg(first) + treeAvg(first + 1u) + treeAvg(first + 2u) + treeAvg(first + 3u);
+    float w = treeAvg(first + (pixel & 3u));
+    if (w <= 0.0) return 0.0;
+    precise float q = w / sum;
+    p *= hreal(q);
+    pixel >>= 2;
+  }
+  return p;
+}
+
 // environmentPixelProbability / pixel solid angle.
 float environmentPdf(vec3 dir) {
   uint pixel = envPixelOf(dir);

@@ -161,7 +161,10 @@ TEST(GpuShaders, InterfaceMatchesCommonHeader) {
         case HT_BINDING_HT_CONES_TEXELS:
         case HT_BINDING_FRONTIER_CHROMA_TEXELS:
         case HT_BINDING_FRONTIER_CENTROID_TEXELS:
-        case HT_BINDING_FRONTIER_BINS_TEXELS: EXPECT_EQ(b.kind, vk::BindingKind::UniformTexel); break;
+        case HT_BINDING_FRONTIER_BINS_TEXELS:
+        case HT_BINDING_CUT_MOMENT_TEXELS:
+        case HT_BINDING_CUT_RECORD_TEXELS:
+        case HT_BINDING_CUT_LOOKUP_TEXELS: EXPECT_EQ(b.kind, vk::BindingKind::UniformTexel); break;
         default: ADD_FAILURE() << "unexpected binding " << b.binding;
       }
     }
@@ -792,7 +795,7 @@ TEST(GpuRenderTiles, TexelViewsAndDeviceAddressesGiveTheSameImage) {
   GpuRenderer a(gpuOptions()), b(addresses);
   a.setScene(testScene());
   b.setScene(testScene());
-  for (Method m : {Method::Mis, Method::HtVis, Method::HtBiased, Method::HtFrontier, Method::Ris}) {
+  for (Method m : {Method::Mis, Method::HtVis, Method::HtBiased, Method::HtFrontier, Method::Ris, Method::HtCut}) {
     SCOPED_TRACE(methodName(m));
     const RenderSettings rs = settings(m, 8, 7, 40, 20);
     const GpuRenderResult ga = a.render(rs), gb = b.render(rs);
@@ -1005,18 +1008,28 @@ TEST(GpuBatches, LoopsCutShortAreRedone) {
 // image and the same counts.
 INSTANTIATE_TEST_SUITE_P(Product, GpuSameSeed,
                          ::testing::Values(MethodCase{Method::HtFrontier, false},
-                                           MethodCase{Method::HtFrontier, false, SamplerKind::Independent}),
+                                           MethodCase{Method::HtFrontier, false, SamplerKind::Independent},
+                                           MethodCase{Method::HtCut, false},
+                                           MethodCase{Method::HtCut, false, SamplerKind::Independent}),
                          [](const auto& info) {
                            std::string name = caseName(info.param);
                            std::replace(name.begin(), name.end(), '-', '_');
                            return name;
                          });
-INSTANTIATE_TEST_SUITE_P(Product, GpuOtherSeeds, ::testing::Values(Method::HtFrontier),
-                         [](const auto&) { return std::string("ht_frontier"); });
+INSTANTIATE_TEST_SUITE_P(Product, GpuOtherSeeds, ::testing::Values(Method::HtFrontier, Method::HtCut),
+                         [](const auto& info) {
+                           std::string name = methodName(info.param);
+                           std::replace(name.begin(), name.end(), '-', '_');
+                           return name;
+                         });
 // In float the masses' sums and the directions round otherwise: the same
 // estimator, other directions.
-INSTANTIATE_TEST_SUITE_P(Product, GpuOtherSeedsFp32, ::testing::Values(Method::HtFrontier),
-                         [](const auto&) { return std::string("ht_frontier"); });
+INSTANTIATE_TEST_SUITE_P(Product, GpuOtherSeedsFp32, ::testing::Values(Method::HtFrontier, Method::HtCut),
+                         [](const auto& info) {
+                           std::string name = methodName(info.param);
+                           std::replace(name.begin(), name.end(), '-', '_');
+                           return name;
+                         });
 
 // On a glossy floor a point samples the plane's shared table and its
 // specular lobe apart; in float too the estimator is the CPU's.
@@ -1123,6 +1136,37 @@ TEST(GpuFrontier, StressScenesMatchTheCpu) {
     EXPECT_LE(c.valueDiffers, c.pixels / 50) << c.scene;
     EXPECT_LT(std::fabs(c.gpuSum - c.cpuSum), 1e-4 * c.cpuSum) << c.scene;
   }
+}
+
+// ---------------------------------------------------------------- ht-cut
+
+// ht-cut on every stress scene: every pixel draws the CPU's count, and the
+// values agree as ht-frontier's do.
+TEST(GpuCut, StressScenesMatchTheCpu) {
+  GpuRenderer gpu(gpuOptions());
+  if (!gpu.float64()) GTEST_SKIP() << "device without shaderFloat64";
+  for (const StressComparison& c : compareOnStressScenes(gpu, Method::HtCut, 16)) {
+    EXPECT_EQ(c.countDiffers, 0u) << c.scene;
+    EXPECT_EQ(c.gpuShaded, c.cpuShaded) << c.scene;
+    EXPECT_LE(c.valueDiffers, c.pixels / 50) << c.scene;
+    EXPECT_LT(std::fabs(c.gpuSum - c.cpuSum), 1e-4 * c.cpuSum) << c.scene;
+  }
+}
+
+// Every batch weighs the cut again at its pixel's point: batches of three
+// directions and tiles 13 pixels wide at the image's edge give the image of
+// one batch and one tile, and the CPU's counts.
+TEST(GpuCut, BatchesAndTilesGiveTheSameImage) {
+  const RenderSettings rs = settings(Method::HtCut, 8, 3, 61, 29);
+  GpuRenderResult a, b;
+  if (!renderTiledAndWhole(rs, a, b, 3)) GTEST_SKIP() << "device without shaderFloat64";
+  const RenderResult cpu = renderCpu(testScene(), rs);
+  EXPECT_EQ(a.tiles, 4 * 2);
+  EXPECT_EQ(a.batchLimit, 3u);
+  EXPECT_EQ(a.result.counters.directions, cpu.counters.directions);
+  EXPECT_EQ(b.result.counters.directions, uint64_t(8) * cpu.shadedPixels);
+  EXPECT_EQ(differingPixels(a, b), 0u);
+  expectNoValidationMessages();
 }
 
 // restir and restir-biased on every stress scene: every pixel draws the

@@ -24,7 +24,7 @@ TEST(Methods, RegistryHoldsEveryNumberOnceInOrder) {
     EXPECT_GE(m.directionsPerSample, 1) << m.name;
   }
   // The shaders' numbers: the last one names the registry's size.
-  EXPECT_EQ(allMethods().size(), size_t(HT_METHOD_RESTIR_BIASED) + 1);
+  EXPECT_EQ(allMethods().size(), size_t(HT_METHOD_HT_CUT) + 1);
   EXPECT_FALSE(parseMethod("no-such-method"));
 }
 

@@ -11,13 +11,13 @@
 namespace ht {
 
 extern const MethodSpec kUniform, kCosine, kEnv, kBrdf, kMis, kHt, kHtVis, kHtBiased, kHtVisBiased, kOracle, kWis,
-    kWisBiased, kTsis, kRis, kHtFrontier, kMisCompensated, kRestir, kRestirBiased;
+    kWisBiased, kTsis, kRis, kHtFrontier, kMisCompensated, kRestir, kRestirBiased, kHtCut;
 
 namespace {
 
 const std::array kRegistry = {&kUniform, &kCosine, &kEnv, &kBrdf, &kMis, &kHt, &kHtVis, &kHtBiased, &kHtVisBiased,
                               &kOracle, &kWis, &kWisBiased, &kTsis, &kRis, &kHtFrontier, &kMisCompensated,
-                              &kRestir, &kRestirBiased};
+                              &kRestir, &kRestirBiased, &kHtCut};
 
 constexpr const char* kSamplerChoices[] = {"stratified", "independent"};
 const MethodOption kSampler{

@@ -15,6 +15,7 @@ std::unique_ptr<GpuMethodState> makeHtGpuState();           // ht_gpu.cpp
 std::unique_ptr<GpuMethodState> makeCompetitorGpuState();   // competitors_gpu.cpp
 std::unique_ptr<GpuMethodState> makeFrontierGpuState();     // frontier_gpu.cpp
 std::unique_ptr<GpuMethodState> makeRestirGpuState();       // reuse_gpu.cpp
+std::unique_ptr<GpuMethodState> makeCutGpuState();          // cut_gpu.cpp
 
 // --ris-candidates, which restir* shares (competitors.cpp).
 extern const MethodOption kRisCandidates;

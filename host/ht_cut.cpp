@@ -1,0 +1,361 @@
+#include "ht_cut.h"
+
+#include <algorithm>
+#include <cmath>
+#include <queue>
+
+#include <glm/geometric.hpp>
+
+#include "env_sampler.h"
+#include "healpix.h"
+#include "ht.h"
+#include "rng.h"
+
+namespace ht {
+
+float cutDiscSin(int level) { return float(std::sin(1.0 / (std::sqrt(3.0) * std::ldexp(1.0, level)))); }
+
+namespace {
+
+// The tree's first moments down to `levels`, summed in double from the
+// leaves.
+std::vector<glm::vec3> firstMoments(const Environment& env, const HtGeometry& g, int levels) {
+  const int order = env.order;
+  std::vector<glm::dvec3> below(size_t(MaxAvgTree::levelSize(order)));
+  const uint64_t leaves = MaxAvgTree::levelOffset(order);
+  const double omega = healpix::pixelSolidAngle(order);
+  for (uint64_t i = 0; i < below.size(); ++i)
+    below[i] = double(env.tree.avgv[leaves + i]) * omega * glm::dvec3(g.centers[leaves + i]);
+  std::vector<glm::vec3> moment(size_t(MaxAvgTree::levelOffset(levels + 1)));
+  for (int level = order;; --level) {
+    if (level <= levels)
+      for (uint64_t i = 0; i < below.size(); ++i) moment[MaxAvgTree::levelOffset(level) + i] = glm::vec3(below[i]);
+    if (level == 0) break;
+    std::vector<glm::dvec3> above(below.size() / 4);
+    for (uint64_t i = 0; i < above.size(); ++i)
+      above[i] = ((below[4 * i] + below[4 * i + 1]) + below[4 * i + 2]) + below[4 * i + 3];
+    below = std::move(above);
+  }
+  return moment;
+}
+
+}  // namespace
+
+EnvCut buildEnvCut(const Environment& env, const HtGeometry& g, int nodes) {
+  const MaxAvgTree& tree = env.tree;
+  const int order = env.order;
+  EnvCut cut;
+  cut.momentLevel = std::min(kCutMomentLevel, order);
+  cut.moment = firstMoments(env, g, cut.momentLevel);
+  for (int level = 0; level <= order; ++level) {
+    const double omega = healpix::pixelSolidAngle(level);
+    cut.discSin[size_t(level)] = cutDiscSin(level);
+    cut.discChord[size_t(level)] = float(std::sqrt(omega / 3.14159265358979323846));
+    cut.omega[size_t(level)] = float(omega);
+  }
+
+  // The largest power first; ties by level, then index, so that the cut is
+  // the same on every platform.
+  struct Item {
+    double power;
+    int level;
+    uint64_t node;
+    bool operator<(const Item& o) const {
+      if (power != o.power) return power < o.power;
+      if (level != o.level) return level > o.level;
+      return node > o.node;
+    }
+  };
+  auto item = [&](int level, uint64_t node) {
+    return Item{double(tree.avg(level, node)) * healpix::pixelSolidAngle(level), level, node};
+  };
+  const int maxLevel = std::min(kCutMaxLevel, order);
+  const size_t target = size_t(std::clamp(nodes, 12, HT_CUT_MAX_NODES));
+  std::priority_queue<Item> open;
+  std::vector<Item> done;
+  for (uint64_t f = 0; f < 12; ++f) open.push(item(0, f));
+  while (!open.empty() && open.size() + done.size() + 3 <= target) {
+    const Item top = open.top();
+    open.pop();
+    if (top.level >= maxLevel || !(top.power > 0.0)) {
+      done.push_back(top);
+      continue;
+    }
+    for (uint64_t c = 0; c < 4; ++c) open.push(item(top.level + 1, 4 * top.node + c));
+  }
+  for (; !open.empty(); open.pop()) done.push_back(open.top());
+  auto firstBelow = [&](const Item& i) { return i.node << (2 * (maxLevel - i.level)); };
+  std::sort(done.begin(), done.end(), [&](const Item& a, const Item& b) { return firstBelow(a) < firstBelow(b); });
+
+  cut.lookupLevel = maxLevel;
+  cut.lookup.assign(MaxAvgTree::levelSize(maxLevel), 0);
+  for (const Item& i : done) {
+    glm::dvec3 radiance(0.0);
+    double lum = 0.0;
+    const uint64_t leaves = uint64_t(1) << (2 * (order - i.level)), first = i.node * leaves;
+    for (uint64_t l = first; l < first + leaves; ++l) {
+      radiance += glm::dvec3(env.radiance[l]);
+      lum += double(luminance(env.radiance[l]));
+    }
+    const uint32_t k = uint32_t(cut.nodes.size());
+    cut.nodes.push_back({i.level, i.node, lum > 0.0 ? glm::vec3(radiance / lum) : glm::vec3(0.0f)});
+    std::fill_n(cut.lookup.begin() + int64_t(firstBelow(i)), uint64_t(1) << (2 * (maxLevel - i.level)), k);
+  }
+  return cut;
+}
+
+CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh, const CutOptions& options,
+                   const EnvCut& cut, const HtGeometry& g)
+    : cut(cut), g(g), tree(scene.environment.tree), minPartial(options.minPartialVisibility) {
+  const Environment& env = scene.environment;
+  s = glm::vec3(env.toHealpixFrame(sh.frame.s));
+  t = glm::vec3(env.toHealpixFrame(sh.frame.t));
+  normal = glm::vec3(env.toHealpixFrame(sh.frame.n));
+  woLocal = sh.woLocal;
+  const Material& m = *sp.material;
+  const bool hasLobe = m.type != MaterialType::Lambert && luminance(m.specular) > 0.0f;
+  apart = hasLobe && luminance(m.diffuse) > 0.0f;
+  lobeOnly = hasLobe && !apart;
+  // A lobe alone: the cut's weights read it at the light's centroid; below
+  // the cut the children weigh as a diffuse lobe of its reflectance would.
+  diffuse = (lobeOnly ? luminance(m.specular) : luminance(m.diffuse)) * kInvPi;
+  lobe = m;
+  lobe.diffuse = glm::vec3(0.0f);
+  if (!options.visibility) return;
+  const float cm = std::cos(kCapMargin), sm = std::sin(kCapMargin);
+  for (const Occluder& o : occluders(scene, sp)) {
+    // The plane the point lies on: its cap is the point's horizon, which
+    // the weights already hold.
+    if (glm::dot(o.axis, normal) < -0.9999f) continue;
+    CutCap c;
+    if (!frontierCap(o.axis, o.sinHalfAngle, g, c.cap)) continue;
+    // frontierCap's cos of the half-angle less the margin.
+    const float s0 = o.sinHalfAngle, c0 = std::sqrt(1.0f - s0 * s0);
+    const float cosA = c0 * cm + s0 * sm;
+    c.chord = std::sqrt(std::max(2.0f - 2.0f * cosA, 0.0f));
+    caps.push_back(c);
+  }
+}
+
+// The diffuse part is exact where the node lies above the horizon; where
+// the horizon cuts its disc, at least the clipped disc's estimate; and at
+// least kCutHorizonFloor x its power x the cos of its bounding cone's
+// highest point. A partly covered node's visible share: the node and the
+// cap as discs in the plane (chords for radii and distance), the smaller's
+// covered share 1 - smoothstep between the discs touching from inside and
+// from outside; the smallest share under any cap (a ball on a plane
+// overlaps it), at least minPartial.
+float CutPoint::weight(int level, uint64_t at, bool withLobe, bool* uncertain) const {
+  const size_t l = size_t(level);
+  const float power = cut.omega[l] * tree.avgv[at];
+  if (!(power > 0.0f)) return 0.0f;
+  const glm::vec3& m = cut.moment[at];
+  const glm::vec3& centre = g.centers[at];
+  const float sinE = glm::dot(centre, normal), sinR = cut.discSin[l];
+  float w = 0.0f;
+  if (withLobe) {
+    const float len = std::sqrt(glm::dot(m, m));
+    if (len > 0.0f) {
+      const glm::vec3 c = m / len;
+      w = power * luminance(evalBsdf(lobe, woLocal, glm::vec3(glm::dot(c, s), glm::dot(c, t), glm::dot(c, normal))));
+    }
+  } else if (diffuse > 0.0f) {
+    float d = glm::dot(m, normal);
+    if (sinE < sinR) {
+      d = sinE <= -sinR ? 0.0f : std::max(d, power * cutClippedCosine(sinE, sinR));
+      if (uncertain && sinE > -sinR) *uncertain = true;
+    }
+    const float cosR = g.levelCosRadius[l], sinRb = g.levelSinRadius[l];
+    const float cosE = std::sqrt(std::max(0.0f, 1.0f - sinE * sinE));
+    const float top = sinE >= cosR ? 1.0f : sinE * cosR + cosE * sinRb;
+    d = std::max(d, kCutHorizonFloor * power * std::max(top, 0.0f));
+    w = diffuse * d;
+  }
+  if (!(w > 0.0f) || caps.empty()) return w;
+  float visible = 1.0f;
+  const float rn = cut.discChord[l];
+  for (const CutCap& c : caps) {
+    const float d = glm::dot(centre, c.cap.axis);
+    if (d >= c.cap.cosInside[l]) return 0.0f;
+    if (d > c.cap.cosOutside[l]) {
+      const float small = std::min(rn, c.chord);
+      const float dist = std::sqrt(std::max(2.0f - 2.0f * d, 0.0f));
+      const float x = std::clamp((dist - std::abs(rn - c.chord)) / (2.0f * small), 0.0f, 1.0f);
+      const float ratio = small / rn;
+      const float covered = (1.0f - x * x * (3.0f - 2.0f * x)) * (ratio * ratio);
+      visible = std::min(visible, 1.0f - covered);
+    }
+  }
+  if (uncertain && visible < 1.0f) *uncertain = true;
+  return w * std::max(visible, minPartial);
+}
+
+void CutDensity::reset(const CutPoint& point, const Environment& env, const CutOptions& options) {
+  point_ = &point;
+  env_ = &env;
+  productLevel_ = std::min(options.productLevel, point.cut.momentLevel);
+  const EnvCut& cut = point.cut;
+  const size_t K = cut.nodes.size();
+  cum_.resize(K + 1);
+  float total = 0.0f;
+  glm::vec3 chromaSum(0.0f);
+  for (size_t k = 0; k < K; ++k) {
+    const CutNode& c = cut.nodes[k];
+    const uint64_t at = MaxAvgTree::levelOffset(c.level) + c.node;
+    bool uncertain = false;
+    float w = point.weight(c.level, at, point.lobeOnly, &uncertain);
+    // Its four children's weights where the horizon or a cap cuts it: the
+    // descent's first step draws by them, so any weight keeps the pdf.
+    if (uncertain && c.level < cut.momentLevel) {
+      const uint64_t first = MaxAvgTree::levelOffset(c.level + 1) + 4 * c.node;
+      const bool lobe = point.lobeOnly;
+      const float children = ((point.weight(c.level + 1, first, lobe) + point.weight(c.level + 1, first + 1, lobe)) +
+                              point.weight(c.level + 1, first + 2, lobe)) +
+                             point.weight(c.level + 1, first + 3, lobe);
+      if (children > 0.0f) w = children;
+    }
+    cum_[k] = total;
+    total += w;
+    chromaSum += (total - cum_[k]) * c.chroma;
+  }
+  cum_[K] = total;
+  total_ = total;
+  colourMean_ = total > 0.0f ? chromaSum / total : glm::vec3(0.0f);
+}
+
+uint32_t CutDensity::node(double x) const {
+  const size_t K = point_->cut.nodes.size();
+  const float target = float(x) * total_;
+  size_t k = size_t(std::upper_bound(cum_.begin() + 1, cum_.begin() + int64_t(K), target) - cum_.begin()) - 1;
+  while (k > 0 && !(cum_[k + 1] - cum_[k] > 0.0f)) --k;  // a target at the very end
+  return uint32_t(k);
+}
+
+double CutDensity::nodeProbability(uint32_t k) const { return double((cum_[k + 1] - cum_[k]) / total_); }
+
+void CutDensity::childWeights(int level, uint64_t parent, float (&w)[4]) const {
+  const uint64_t first = MaxAvgTree::levelOffset(level) + 4 * parent;
+  for (int j = 0; j < 4; ++j) w[j] = point_->weight(level, first + uint64_t(j), false);
+  if (!(((w[0] + w[1]) + w[2]) + w[3] > 0.0f))
+    for (int j = 0; j < 4; ++j) w[j] = env_->tree.avgv[first + uint64_t(j)];
+}
+
+EnvSample CutDensity::sample(uint32_t k, glm::dvec2 u) const {
+  const CutNode& c = point_->cut.nodes[k];
+  double p = nodeProbability(k);
+  uint64_t node = c.node;
+  const int below = std::max(c.level, productLevel_);
+  for (int l = c.level + 1; l <= below; ++l) {
+    float w[4], prob;
+    childWeights(l, node, w);
+    node = 4 * node + uint64_t(pickRescaled4(w, u.x, prob));
+    p *= double(prob);
+  }
+  EnvSample es = sampleEnvironmentBelow(*env_, env_->tree, below, node, u);
+  es.pdf = float(p * double(es.pdf));
+  return es;
+}
+
+float CutDensity::pdf(uint64_t pixel) const {
+  const EnvCut& cut = point_->cut;
+  const uint32_t k = cut.cutNodeOf(*env_, pixel);
+  const CutNode& c = cut.nodes[k];
+  double p = nodeProbability(k);
+  const int below = std::max(c.level, productLevel_);
+  for (int l = c.level + 1; l <= below && p > 0.0; ++l) {
+    float w[4];
+    childWeights(l, pixel >> (2 * (env_->order - l + 1)), w);
+    const int j = int((pixel >> (2 * (env_->order - l))) & 3);
+    const float sum = ((w[0] + w[1]) + w[2]) + w[3];
+    p = w[j] > 0.0f ? p * double(w[j] / sum) : 0.0;
+  }
+  return float(p * environmentPixelProbabilityBelow(env_->tree, below, pixel) / env_->pixelSolidAngle());
+}
+
+glm::vec3 estimateHtCut(const Scene& scene, const ShadingPoint& sp, const CutOptions& options, int n, Rng& rng,
+                        PixelSampler& sampler, EstimateCounters& counters, const EnvCut& cut, const HtGeometry& g) {
+  const Environment& env = scene.environment;
+  if (!env.hasLight() || n <= 0) return glm::vec3(0.0f);
+  const Shading sh(scene, sp, counters);
+  const Material& mat = *sp.material;
+  const CutPoint point(scene, sp, sh, options, cut, g);
+  thread_local CutDensity densityStore;
+  CutDensity* density = &densityStore;
+  density->reset(point, env, options);
+  const float total = density->total();
+  if (!(total > 0.0f)) return glm::vec3(0.0f);
+
+  // The BRDF technique and its count. A diffuse point has none. With both
+  // lobes the weights hold the diffuse one and the BRDF technique samples
+  // the specular lobe for its share of the light (ht-frontier's
+  // frontierLobeCount: reflectance x the map's average around the mirror
+  // direction against the weights' total). A specular lobe alone gives
+  // options.brdfShare of the directions to the BRDF.
+  const Material& bm = point.apart ? point.lobe : mat;
+  float share = 0.0f;
+  if (point.apart) {
+    const int lobeLevel = std::min(kFrontierLobeLevel, env.order);
+    const glm::vec3 mirror = sh.frame.toWorld(glm::vec3(-sh.woLocal.x, -sh.woLocal.y, sh.woLocal.z));
+    const float mirrorRadiance = env.tree.avgv[MaxAvgTree::levelOffset(lobeLevel) +
+                                               healpix::vecToPix(lobeLevel, env.toHealpixFrame(mirror))];
+    const float f0 = luminance(mat.specular);
+    const float q = 1.0f - std::clamp(sh.woLocal.z, 0.0f, 1.0f);
+    const float reflectance = mat.type == MaterialType::Ggx ? f0 + (1.0f - f0) * (q * q * q * q * q) : f0;
+    const float lobeLight = reflectance * mirrorRadiance;
+    share = std::clamp(lobeLight / (lobeLight + total), kCutMinShare, 1.0f - kCutMinShare);
+  } else if (point.lobeOnly) {
+    share = options.brdfShare;
+  }
+  // Fixed counts, at least one of each technique that has a share; one
+  // direction picks its technique with the shares as probabilities.
+  const bool mixture = n == 1 && share > 0.0f;
+  const int nb = share > 0.0f && n > 1 ? std::clamp(int(std::floor(double(share) * n + 0.5)), 1, n - 1) : 0;
+  const float cWeight = mixture ? 1.0f - share : float(n - nb);
+  const float bWeight = mixture ? share : float(nb);
+  double offset = double(rng.next());
+  int cutCount = n - nb, brdfCount = nb;
+  if (mixture) {
+    const bool fromCut = offset >= double(share);
+    cutCount = fromCut ? 1 : 0;
+    brdfCount = 1 - cutCount;
+    offset = fromCut ? (offset - double(share)) / (1.0 - double(share)) : offset / double(share);
+  }
+  counters.directions += uint64_t(n);
+
+  // The control variate: a cut direction's f / p is about total / cWeight x
+  // the diffuse colour x its light's chroma, and the chroma of the node
+  // drawn has the mean colourMean. A lobe alone has none: its weights are
+  // not its density's product.
+  const bool colourControl = options.colourControl && cutCount > 0 && !point.lobeOnly;
+  const glm::vec3 fColour = colourControl ? mat.diffuse / luminance(mat.diffuse) : glm::vec3(0.0f);
+  const glm::dvec3 colourScale = glm::dvec3(fColour) * (double(total) / double(cWeight));
+  const glm::vec3 colourMean = density->colourMean();
+
+  glm::dvec3 sum(0.0);
+  // Systematic points on the cut's prefix sums, one offset per point; below
+  // its node a direction takes the sampler's point of sample i, dimension
+  // 0, and the BRDF's directions dimension 1.
+  for (int i = 0; i < cutCount; ++i) {
+    const uint32_t k = density->node((double(i) + offset) / double(cutCount));
+    if (colourControl) sum += colourScale * glm::dvec3(colourMean - cut.nodes[k].chroma);
+    sampler.startSample(uint32_t(i));
+    const EnvSample es = density->sample(k, sampler.get2DPrecise());
+    if (!(es.pdf > 0.0f)) continue;
+    const float pb = bWeight > 0.0f ? bsdfPdf(bm, sh.woLocal, sh.frame.toLocal(es.dir)) : 0.0f;
+    sum += glm::dvec3(sh.reflected(es.dir, env.radiance[es.pixel]) / (cWeight * es.pdf + bWeight * pb));
+  }
+  for (int i = 0; i < brdfCount; ++i) {
+    sampler.startSample(uint32_t(i));
+    sampler.setDimension(1);
+    const glm::vec3 local = sampleBsdf(bm, sh.woLocal, sampler.get2D());
+    const float pb = bsdfPdf(bm, sh.woLocal, local);
+    if (!(pb > 0.0f)) continue;
+    const glm::vec3 wi = sh.frame.toWorld(local);
+    const uint64_t pixel = env.pixelOf(wi);
+    sum += glm::dvec3(sh.reflected(wi, env.radiance[pixel]) / (cWeight * density->pdf(pixel) + bWeight * pb));
+  }
+  // The control variate can take a dark channel below 0, rarely.
+  return glm::vec3(glm::max(sum, glm::dvec3(0.0)));
+}
+
+}  // namespace ht

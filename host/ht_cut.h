@@ -1,0 +1,173 @@
+// ht-cut: product importance sampling over a fixed cut of HT's tree, in
+// the shape a GPU runs well.
+//
+// The host cuts the environment's average tree once per map: K nodes,
+// refined from the base faces by splitting the node of largest power
+// (average luminance x solid angle) until there are K or the nodes reach
+// kCutMaxLevel. A shading point weighs every node of the cut in one loop of
+// K passes, the same loop for every pixel (CutPoint::weight):
+//
+//   w_k = (diffuse / pi x D_k + P_k x specular f cos at the light's centroid) x v_k
+//
+// with P_k the node's power, D_k its light's integral of cos+ (its first
+// moment dotted with the normal, exact above the horizon: cos is linear in
+// the direction), v_k its visible share under the point's caps. Where the
+// horizon or a cap cuts a node of the cut, its weight is its four
+// children's. n_c of the n directions are systematic points on the prefix
+// sums of w; below its node a direction descends by the children's weights
+// down to CutOptions::productLevel, by the average tree below. The other
+// n_b come from the BRDF (the specular lobe alone where the weights hold the
+// diffuse lobe), and all n are combined by the balance heuristic,
+//
+//   sum f(w) / (n_c p_c(w) + n_b p_b(w)),
+//
+// plus a control variate on colour. A pure diffuse point has n_b = 0: its
+// weights stay positive wherever its integrand can be (kCutHorizonFloor).
+// Elsewhere p_b covers every direction where f cos is positive, so that p_c
+// may be zero there. A direction's p_c needs its node: a table at
+// kCutMaxLevel maps each node of that level to the cut node holding it.
+//
+// No heap, no per-point table, no search longer than log K: every pixel
+// runs the same loops.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "bsdf.h"
+#include "common.h"
+#include "env_sampler.h"
+#include "environment.h"
+#include "ht_frontier.h"
+#include "integrator.h"
+#include "sampler.h"
+#include "shading.h"
+
+namespace ht {
+
+class Rng;
+
+constexpr int kCutMaxLevel = HT_CUT_MAX_LEVEL;
+// The deepest level whose nodes a point weighs: a cut node's children.
+constexpr int kCutMomentLevel = kCutMaxLevel + 1;
+// A node's weight is at least this share of its power x the cos of its
+// bounding cone's highest point, where that point lies above the horizon.
+constexpr float kCutHorizonFloor = HT_CUT_HORIZON_FLOOR;
+// Either technique's share of a point with both lobes, at least.
+constexpr float kCutMinShare = HT_CUT_MIN_SHARE;
+
+// The sine of the radius of a disc of a node's solid angle at `level`.
+float cutDiscSin(int level);
+// The mean of cos+ over a small disc of radius R whose centre lies at
+// elevation E, from sin E and sin R: sin R x m(sin E / sin R), m the
+// clipped disc's exact mean approximated by (1 + a)^2 / 4 x (89/128 +
+// 39/256 (1 + a)) (within 0.02 of it; exact at a = -1 and 1; the constants
+// exact in float, as the shader's literals must be).
+inline float cutClippedCosine(float sinE, float sinR) {
+  const float a = sinE / sinR;
+  const float b = 1.0f + a;
+  const float c = 0.6953125f + 0.15234375f * b;
+  return sinR * ((0.25f * b * b) * c);
+}
+
+struct CutNode {
+  int level;
+  uint64_t node;
+  glm::vec3 chroma;  // its light's radiance over luminance, both summed over its leaves
+};
+
+struct EnvCut {
+  std::vector<CutNode> nodes;    // along the nested index
+  int lookupLevel = 0;           // min(kCutMaxLevel, the map's order)
+  std::vector<uint32_t> lookup;  // per node of lookupLevel: the cut node holding it
+  int momentLevel = 0;           // min(kCutMomentLevel, the map's order)
+  // Per tree node down to momentLevel (the tree's layout): the first moment
+  // of its light, luminance x solid angle x centre summed over its leaves
+  // (HEALPix frame).
+  std::vector<glm::vec3> moment;
+  std::array<float, 32> discSin{};    // cutDiscSin per level
+  std::array<float, 32> discChord{};  // the chord radius of that disc
+  std::array<float, 32> omega{};      // a node's solid angle per level
+  uint32_t cutNodeOf(const Environment& env, uint64_t pixel) const {
+    return lookup[pixel >> (2 * (env.order - lookupLevel))];
+  }
+};
+
+// The cut of `nodes` nodes (12 to HT_CUT_MAX_NODES); `g`: the map's order.
+EnvCut buildEnvCut(const Environment& env, const HtGeometry& g, int nodes);
+
+struct CutOptions {
+  float brdfShare = 0.5f;             // n_b / n at a point with a specular lobe alone
+  float minPartialVisibility = 0.1f;  // a partly covered node's visible share, at least
+  int productLevel = 5;               // children by their weights down to this level
+  bool visibility = true;             // the caps in the weights
+  bool colourControl = true;          // the control variate on colour
+};
+
+struct MethodOptions;
+// ht-cut's options for a render's method options.
+CutOptions cutOptionsFor(const MethodOptions& options);
+
+// A point's cap: frontierCap's thresholds and the chord of its radius.
+struct CutCap {
+  LightCap cap;
+  float chord;
+};
+
+// What weighs the tree's nodes at one shading point (HEALPix frame).
+struct CutPoint {
+  CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh, const CutOptions& options,
+           const EnvCut& cut, const HtGeometry& g);
+  // Node `at` (the tree's layout) of `level` <= cut.momentLevel; withLobe:
+  // a lobe alone's, read at the light's centroid. `uncertain`, if given, is
+  // set where the horizon or a cap cuts the node.
+  float weight(int level, uint64_t at, bool withLobe, bool* uncertain = nullptr) const;
+
+  const EnvCut& cut;
+  const HtGeometry& g;
+  const MaxAvgTree& tree;
+  float minPartial;
+  glm::vec3 s, t, normal;  // the shading frame
+  glm::vec3 woLocal;
+  float diffuse;  // luminance of the diffuse albedo (of the specular one for a lobe alone) / pi
+  bool apart;     // a diffuse and a specular lobe: the weights hold the diffuse one
+  bool lobeOnly;  // a specular lobe alone
+  Material lobe;     // the material without its diffuse lobe
+  std::vector<CutCap> caps;
+};
+
+// The density a point samples its cut directions from: the cut's prefix
+// sums over the point's weights, and below a node the children by their
+// weights (the diffuse form) down to productLevel, by the average tree below.
+class CutDensity {
+ public:
+  // Weighs the cut at `point` (which it keeps a reference to), reusing its storage.
+  void reset(const CutPoint& point, const Environment& env, const CutOptions& options);
+  float total() const { return total_; }
+  // The mean chroma of the node drawn: the nodes' chroma by their probabilities.
+  glm::vec3 colourMean() const { return colourMean_; }
+  // The node whose prefix sums hold x * total (x in [0, 1)).
+  uint32_t node(double x) const;
+  double nodeProbability(uint32_t k) const;
+  // A direction below node k from u; its pdf: p_c's solid-angle density.
+  EnvSample sample(uint32_t k, glm::dvec2 u) const;
+  // p_c of a direction in `pixel` (solid angle).
+  float pdf(uint64_t pixel) const;
+
+ private:
+  void childWeights(int level, uint64_t parent, float (&w)[4]) const;
+  const CutPoint* point_ = nullptr;
+  const Environment* env_ = nullptr;
+  int productLevel_ = 0;
+  std::vector<float> cum_;  // cum_[k]: the weights before node k; node k's is cum_[k + 1] - cum_[k]
+  float total_ = 0.0f;
+  glm::vec3 colourMean_{0.0f};
+};
+
+glm::vec3 estimateHtCut(const Scene& scene, const ShadingPoint& sp, const CutOptions& options, int n, Rng& rng,
+                        PixelSampler& sampler, EstimateCounters& counters, const EnvCut& cut, const HtGeometry& g);
+
+}  // namespace ht

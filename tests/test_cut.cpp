@@ -1,0 +1,249 @@
+// ht-cut: the cut of the environment's tree, its density against its own
+// samples, the weights' first moments, the fixed sample count, unbiasedness
+// against the brute force at low and high counts, and images that the
+// thread count never changes.
+#include <numeric>
+
+#include <gtest/gtest.h>
+
+#include <tbb/global_control.h>
+
+#include "chi2.h"
+#include "estimator_harness.h"
+#include "ht_cut.h"
+#include "render.h"
+#include "tables.h"
+
+using namespace ht;
+using namespace ht::test;
+
+namespace {
+
+constexpr int kEnvOrder = 5;
+
+const Environment& sunrise() {
+  static const Environment env = sunriseAt(kEnvOrder);
+  return env;
+}
+
+ShadingSetup flat(ShadingSetup s) {
+  s.sp.flat = true;
+  return s;
+}
+
+// Points that take each path: diffuse ones with and without occluders (the
+// caps, the refined nodes of the cut), glossy ones with both lobes (the
+// specular lobe by the BRDF technique) and with a lobe alone (its weights
+// at the centroids), a grazing view, a one-pixel sun.
+std::vector<ShadingSetup> setups() {
+  std::vector<ShadingSetup> s;
+  s.push_back(flat(makeSetup("flat-diffuse-sunrise-occluded", sunrise(), lambert(0.8f), {0.3f, 1.0f, 0.2f},
+                             {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}, {glm::vec3(1.5f, 0.4f, -0.3f), 0.4f, 0}})));
+  s.push_back(makeSetup("diffuse-sunrise", sunrise(), lambert(0.8f), {0.3f, 1.0f, 0.2f}));
+  s.push_back(makeSetup("ggx0.05-conductor-sunrise", sunrise(), ggx(0.05f, glm::vec3(0.9f, 0.7f, 0.4f)),
+                        {0.2f, 0.5f, -0.8f}));
+  s.push_back(makeSetup("phong-sunrise-occluded", sunrise(), phong(40.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
+                        {-0.4f, 0.6f, 0.3f}, {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}}));
+  s.push_back(flat(makeSetup("flat-diffuse-sun-shadowed", onePixelSun(kEnvOrder), lambert(0.8f), {0.0f, 1.0f, 0.3f},
+                             {{2.0f * kSunDir, 0.4f, 0}})));
+  s.push_back(makeSetup("ggx0.3-plastic-sun", onePixelSun(kEnvOrder), ggx(0.3f, glm::vec3(0.04f), glm::vec3(0.5f)),
+                        mirrorOf(kSunDir)));
+  s.push_back(makeSetup("ggx0.01-conductor-sunrise", sunrise(), ggx(0.01f, glm::vec3(0.95f)), {0.3f, 0.6f, -0.5f}));
+  s.push_back(flat(makeSetup("flat-ggx0.05-plastic-grazing-sunrise-occluded", sunrise(),
+                             ggx(0.05f, glm::vec3(0.04f), glm::vec3(0.3f)), {0.1f, 0.06f, 1.0f},
+                             {{glm::vec3(0.0f, 0.4f, -1.0f), 0.4f, 0}})));
+  return s;
+}
+
+// One point's density over the cut.
+struct PreparedPoint {
+  ShadingPoint sp;
+  MethodTables tables;
+  EstimateCounters counters;
+  std::unique_ptr<Shading> shading;
+  std::unique_ptr<CutPoint> point;
+  CutDensity density;
+};
+
+void prepare(const ShadingSetup& s, PreparedPoint& p) {
+  p.sp = s.sp;
+  p.sp.material = &s.scene.materials[0];
+  p.tables = prepareTables(s.scene, Method::HtCut);
+  p.shading = std::make_unique<Shading>(s.scene, p.sp, p.counters);
+  const CutOptions options;
+  p.point = std::make_unique<CutPoint>(s.scene, p.sp, *p.shading, options, p.tables.own<EnvCut>(), p.tables.geometry());
+  p.density.reset(*p.point, s.scene.environment, options);
+}
+
+// Every setup's mean over `batches` estimates of n directions, for each n
+// in `counts`, against the brute force on a sub x sub grid per pixel (its
+// error taken from the grid of half the size); z-tests Sidak-corrected over
+// setups, counts and channels.
+void expectUnbiased(const std::vector<int>& counts, int batches, uint32_t seedBase, int sub) {
+  const std::vector<ShadingSetup> all = setups();
+  const int tests = int(all.size() * counts.size() * 3);
+  const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
+  for (const ShadingSetup& s : all) {
+    const glm::dvec3 ref = bruteForceIntegral(s, sub);
+    const glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, sub / 2));
+    for (int n : counts) {
+      const MeanAndError e = repeatedEstimates(s, Method::HtCut, batches, n, seedBase + uint32_t(n));
+      for (int c = 0; c < 3; ++c) {
+        const double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
+        ASSERT_GT(se, 0.0) << s.name;
+        EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
+            << s.name << " n " << n << " channel " << c << ": mean " << e.mean[c] << " reference " << ref[c];
+      }
+    }
+  }
+}
+
+}  // namespace
+
+// The cut partitions the sphere: its nodes, along the nested index, hold
+// every pixel of the map once, and the lookup names the node holding each;
+// it has the nodes asked for, the sun's in nodes of their own; a node's
+// first moment is its children's sum and has the length of its power
+// where its light comes from one pixel.
+TEST(Cut, NodesPartitionTheSphere) {
+  const Environment env = onePixelSun(7);
+  const std::shared_ptr<const HtGeometry> g = buildHtGeometry(env.order);
+  for (int k : {12, 64, 256, HT_CUT_MAX_NODES}) {
+    const EnvCut cut = buildEnvCut(env, *g, k);
+    EXPECT_LE(cut.nodes.size(), size_t(k));
+    EXPECT_GT(cut.nodes.size(), size_t(k) - 4);
+    std::vector<int> holder(healpix::pixelCount(env.order), -1);
+    uint64_t next = 0;
+    for (size_t i = 0; i < cut.nodes.size(); ++i) {
+      const CutNode& n = cut.nodes[i];
+      const uint64_t leaves = uint64_t(1) << (2 * (env.order - n.level));
+      ASSERT_EQ(n.node * leaves, next) << "node " << i << " is not next along the nested index";
+      for (uint64_t l = next; l < next + leaves; ++l) holder[l] = int(i);
+      next += leaves;
+      ASSERT_LE(n.level, kCutMaxLevel);
+    }
+    ASSERT_EQ(next, healpix::pixelCount(env.order));
+    for (uint64_t l = 0; l < holder.size(); ++l) ASSERT_EQ(int(cut.cutNodeOf(env, l)), holder[l]) << "pixel " << l;
+    // Past the base faces, the sun's pixel sits in a node of the deepest
+    // level the cut allows: power is what splits.
+    if (k > 12) EXPECT_EQ(cut.nodes[cut.cutNodeOf(env, env.pixelOf(kSunDir))].level, kCutMaxLevel) << k << " nodes";
+  }
+  const EnvCut cut = buildEnvCut(env, *g, 64);
+  for (int level = 0; level < cut.momentLevel; ++level)
+    for (uint64_t i = 0; i < MaxAvgTree::levelSize(level); ++i) {
+      const uint64_t c = MaxAvgTree::levelOffset(level + 1) + 4 * i;
+      const glm::vec3 sum = cut.moment[c] + cut.moment[c + 1] + cut.moment[c + 2] + cut.moment[c + 3];
+      ASSERT_LT(glm::length(cut.moment[MaxAvgTree::levelOffset(level) + i] - sum), 1e-5f * glm::length(sum) + 1e-9f);
+    }
+  const uint64_t sunAt = MaxAvgTree::levelOffset(cut.momentLevel) + (env.pixelOf(kSunDir) >> 2 * (7 - cut.momentLevel));
+  const float power = env.tree.avgv[sunAt] * float(healpix::pixelSolidAngle(cut.momentLevel));
+  EXPECT_NEAR(glm::length(cut.moment[sunAt]), power, 1e-3f * power);
+}
+
+// Directions drawn from uniform points of the cut's prefix sums follow the
+// density the point reports (chi-square over HEALPix bins, Sidak-corrected
+// over the setups); each sample's pdf is the one pdf(pixel) gives.
+TEST(Cut, DensityMatchesItsSamples) {
+  const std::vector<ShadingSetup> all = setups();
+  constexpr int kBinOrder = 3;
+  constexpr int kSamples = 200000;
+  for (const ShadingSetup& s : all) {
+    PreparedPoint p;
+    prepare(s, p);
+    ASSERT_GT(p.density.total(), 0.0f) << s.name;
+    const Environment& env = s.scene.environment;
+    std::vector<double> expected(healpix::pixelCount(kBinOrder), 0.0);
+    for (uint64_t leaf = 0; leaf < healpix::pixelCount(env.order); ++leaf)
+      expected[leaf >> (2 * (env.order - kBinOrder))] += double(p.density.pdf(leaf)) * env.pixelSolidAngle() * kSamples;
+    double worstPdf = 0.0;
+    int wrongLeaf = 0;
+    auto sample = [&](Rng& rng) {
+      const double x = rng.next();
+      const glm::vec2 u = rng.next2();
+      const EnvSample es = p.density.sample(p.density.node(x), glm::dvec2(u));
+      if (env.pixelOf(es.dir) != es.pixel) ++wrongLeaf;
+      worstPdf = std::max(worstPdf, std::abs(double(es.pdf) / double(p.density.pdf(es.pixel)) - 1.0));
+      return glm::dvec3(env.toHealpixFrame(es.dir));
+    };
+    expectDensitiesMatch({{s.name, sample, nullptr, kBinOrder, 0, kSamples, std::move(expected)}}, 7, 3,
+                         int(all.size()));
+    EXPECT_LE(wrongLeaf, kSamples / 10000) << s.name;  // a direction a rounding across a pixel's border
+    EXPECT_LT(worstPdf, 1e-5) << s.name;
+  }
+}
+
+// The density is positive wherever a diffuse point's integrand can be,
+// which lets it draw no BRDF directions: every pixel above the horizon
+// that the caps leave visible has p_c > 0.
+TEST(Cut, DiffuseDensityCoversTheVisibleHemisphere) {
+  std::vector<ShadingSetup> points;
+  for (ShadingSetup& s : setups())
+    if (s.scene.materials[0].type == MaterialType::Lambert) points.push_back(std::move(s));
+  // Normals off the map's pole, whose horizons cross the nodes obliquely.
+  for (const glm::vec3 n : {glm::vec3(0.3f, 1.0f, 0.1f), glm::vec3(-0.7f, 0.4f, 0.5f), glm::vec3(0.2f, -0.3f, 1.0f)}) {
+    ShadingSetup s = makeSetup("tilted-diffuse-sunrise", sunrise(), lambert(0.8f), n);
+    s.scene.planes.clear();
+    s.sp.normal = glm::normalize(n);
+    points.push_back(std::move(s));
+  }
+  for (const ShadingSetup& s : points) {
+    PreparedPoint p;
+    prepare(s, p);
+    const Environment& env = s.scene.environment;
+    int uncovered = 0;
+    for (uint64_t leaf = 0; leaf < healpix::pixelCount(env.order); ++leaf) {
+      for (float dx : {0.1f, 0.5f, 0.9f}) {
+        const glm::vec3 wi = env.direction(env.order, leaf, dx, 0.5f);
+        if (env.pixelOf(wi) != leaf || env.radiance[leaf] == glm::vec3(0.0f)) continue;
+        if (visibleReflectance(s.scene, p.sp, wi) == glm::vec3(0.0f)) continue;
+        uncovered += !(p.density.pdf(leaf) > 0.0f);
+      }
+    }
+    EXPECT_EQ(uncovered, 0) << s.name;
+  }
+}
+
+// The mean of many estimates matches the brute-force integral at 1, 5 and
+// 16 directions: the one-direction mixture, the fixed counts, the colour
+// control variate.
+TEST(Cut, UnbiasedAgainstBruteForce) { expectUnbiased({1, 5, 16}, 4000, 500, 8); }
+
+// The weights are a function of the point and the map alone: the image is
+// the same whatever the thread count, and every shaded pixel draws spp
+// directions.
+TEST(Cut, ThreadsNeverChangeTheImage) {
+  Scene scene = readSceneFile(std::string(HT_TEST_DATA) + "/scenes/spheres.json");
+  scene.environment = sunriseAt(6);
+  RenderSettings rs;
+  rs.method = Method::HtCut;
+  rs.spp = 4;
+  rs.width = 48;
+  rs.height = 24;
+  const RenderResult first = renderCpu(scene, rs);
+  RenderResult oneThread;
+  {
+    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    oneThread = renderCpu(scene, rs);
+  }
+  EXPECT_EQ(first.image.pixels, oneThread.image.pixels);
+  EXPECT_EQ(first.counters.directions, uint64_t(rs.spp) * first.shadedPixels);
+  EXPECT_LE(first.counters.shadowRays, first.counters.directions);
+}
+
+// Where users go: 256 and 1024 directions per estimate on every setup
+// (z-test against the brute force, Sidak-corrected), with exact counts.
+TEST(CutSlow, UnbiasedAtHighSpp) {
+  expectUnbiased({256, 1024}, 300, 900, 12);
+  for (const ShadingSetup& s : setups()) {
+    ShadingPoint sp = s.sp;
+    sp.material = &s.scene.materials[0];
+    const MethodTables tables = prepareTables(s.scene, Method::HtCut);
+    for (int n : {256, 1024}) {
+      Rng rng(3, 1);
+      EstimateCounters counters;
+      estimateDirect(s.scene, sp, Method::HtCut, n, rng, counters, tables);
+      EXPECT_EQ(counters.directions, uint64_t(n)) << s.name;
+      EXPECT_LE(counters.shadowRays, uint64_t(n)) << s.name;
+    }
+  }
+}
