@@ -4,10 +4,11 @@
 #      spp on the cpu, and on the gpu (lavapipe here) every method the GPU path
 #      has, at $GPU_SPP; each point with the stratified and the independent
 #      sampler ($SAMPLERS);
-#   2. the variance floor: oracle against ht-frontier, ht-vis, ht and mis at 16 spp, side by
+#   2. the variance floor: oracle against ht-frontier, ht-cut, ht-vis, ht and mis at 16 spp, side by
 #      side in one run (oracle is slow: 16 spp only);
-#   3. tools/bench.py on every data/scenes/stress/*.json at one spp (the report
-#      carries each method's relMSE to equal time);
+#   3. tools/bench.py on every data/scenes/stress/*.json at one spp on the cpu
+#      and lavapipe (the report carries each method's relMSE to equal time on
+#      the cpu, and gives every method's efficiency against mis on both);
 #   4. tools/scaling.py: render time against spp, environment Nside and image
 #      size; the environment stage split into load / resample / trees for a
 #      1024x512 and a generated 8192x4096 map;
@@ -43,7 +44,7 @@ STRESS_WIDTH=${STRESS_WIDTH:-80}
 STRESS_HEIGHT=${STRESS_HEIGHT:-40}
 STRESS_SPP=${STRESS_SPP:-16}
 STRESS_REF_SPP=${STRESS_REF_SPP:-1024}
-SCALING_METHODS=${SCALING_METHODS:-mis,ht-vis,ht-frontier}
+SCALING_METHODS=${SCALING_METHODS:-mis,ht-vis,ht-frontier,ht-cut}
 
 start=$(date +%s)
 stamp() { echo "make-report: $1 ($(( $(date +%s) - start )) s)" >&2; }
@@ -63,7 +64,7 @@ $PY tools/bench.py --htrender "$H" --scene data/scenes/spheres.json --device "$D
   --samplers "$SAMPLERS" --ref-spp "$REF_SPP" --max-seconds "$MAX_SECONDS" --out "$OUT/bench"
 
 stamp "variance floor: oracle at 16 spp, ${FLOOR_WIDTH}x${FLOOR_HEIGHT}"
-$PY tools/bench.py --htrender "$H" --scene data/scenes/spheres.json --device cpu --methods ht-frontier,ht-vis,ht,mis \
+$PY tools/bench.py --htrender "$H" --scene data/scenes/spheres.json --device cpu --methods ht-frontier,ht-cut,ht-vis,ht,mis \
   --oracle --oracle-spp 16 --spp 16 --runs 1 --width "$FLOOR_WIDTH" --height "$FLOOR_HEIGHT" \
   --extra "--oracle-order $ORACLE_ORDER" \
   --ref-spp "$REF_SPP" --out "$OUT/floor"
@@ -71,7 +72,7 @@ $PY tools/bench.py --htrender "$H" --scene data/scenes/spheres.json --device cpu
 stamp "bench: stress scenes ${STRESS_WIDTH}x${STRESS_HEIGHT}, ${STRESS_SPP} spp"
 stress=()
 for s in data/scenes/stress/*.json; do stress+=(--scene "$s"); done
-$PY tools/bench.py --htrender "$H" "${stress[@]}" --device cpu --spp "$STRESS_SPP" --runs 1 \
+$PY tools/bench.py --htrender "$H" "${stress[@]}" --device "$DEVICES" --spp "$STRESS_SPP" --runs 1 \
   --width "$STRESS_WIDTH" --height "$STRESS_HEIGHT" --ref-spp "$STRESS_REF_SPP" --out "$OUT/stress"
 
 stamp "scaling"

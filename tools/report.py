@@ -132,7 +132,7 @@ def headline_chart(scene, rows, outdir):
     if not methods:
         return None
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
-    colors = {"ht-frontier": "tab:red", "mis": "tab:blue", "ht-vis": "tab:gray"}
+    colors = {"ht-frontier": "tab:red", "ht-cut": "tab:orange", "mis": "tab:blue", "ht-vis": "tab:gray"}
     for name, rs in sorted(methods.items()):
         device = rs[0].get("device", "cpu")
         label = f"{rs[0]['method']} ({'lavapipe' if device == 'gpu' else device})"
@@ -252,7 +252,8 @@ def devices_table(rows):
     return "\n".join(lines) if len(lines) > 2 else None
 
 
-PRODUCT_METHODS = ("ht-frontier", "ht-vis")  # the fixed-count product method and the seed's
+PRODUCT_METHODS = ("ht-frontier", "ht-cut", "ht-vis")  # the fixed-count product methods and the seed's
+FIXED_COUNT = ("ht-frontier", "ht-cut")  # the product methods peers are measured against
 
 
 def findings(rows):
@@ -283,19 +284,21 @@ def findings(rows):
     return " ".join(out)
 
 
-def efficiency_table(rows, spp=16):
-    """Every method's efficiency against mis's at one spp (16, or the largest below it), a column per scene."""
-    spps = {r["spp"] for r in rows if r.get("device", "cpu") == "cpu"}
+def efficiency_table(rows, spp=16, device="cpu"):
+    """Every method's efficiency against mis's at one spp (16, or the largest below it) on one device, a column
+    per scene."""
+    spps = {r["spp"] for r in rows if r.get("device", "cpu") == device}
     if spp not in spps:
         spp = max((s for s in spps if s < spp), default=min(spps, default=spp))
-    cpu = [r for r in rows if r.get("device", "cpu") == "cpu" and r["spp"] == spp]
-    scenes = list(dict.fromkeys(r["scene"] for r in cpu))
-    methods = list(dict.fromkeys(r["method"] for r in cpu if r["method"] != "oracle"))
-    cell = {(r["scene"], r["method"]): r for r in cpu}
+    on = [r for r in rows if r.get("device", "cpu") == device and r["spp"] == spp]
+    scenes = list(dict.fromkeys(r["scene"] for r in on))
+    methods = list(dict.fromkeys(r["method"] for r in on if r["method"] != "oracle"))
+    cell = {(r["scene"], r["method"]): r for r in on}
     if not scenes or not any((s, "mis") in cell for s in scenes):
         return []
-    md = [f"## Efficiency against `mis` at {spp} spp", "",
-          f"1 / (relMSE x time) of each method divided by `mis`'s, both at {spp} spp on the cpu, measured side by "
+    name = "the cpu" if device == "cpu" else "lavapipe" if device == "gpu" else device
+    md = [f"## Efficiency against `mis` at {spp} spp on {name}", "",
+          f"1 / (relMSE x time) of each method divided by `mis`'s, both at {spp} spp on {name}, measured side by "
           "side in one run per scene: above 1 is better than `mis` at equal time. **bold**: the best unbiased "
           "method of the scene.", "",
           "| method | " + " | ".join(scenes) + " |", "|---|" + "---|" * len(scenes)]
@@ -322,20 +325,24 @@ def efficiency_table(rows, spp=16):
 PEERS = ("mis-compensated", "ris", "restir", "restir-biased", "wis", "tsis")  # what users reach for, and the talk's
 
 
-def peers_ahead(ratio, scenes, methods, product="ht-frontier"):
-    """The scenes where a peer beats the product method at equal time (docs/competitors.md says why)."""
+def peers_ahead(ratio, scenes, methods):
+    """The scenes where a peer beats the better fixed-count product method at equal time (docs/competitors.md
+    says why)."""
     ahead = []
     for s in scenes:
-        p = ratio.get((s, product))
-        if p is None:
+        mine = [(ratio[s, m], m) for m in FIXED_COUNT if (s, m) in ratio]
+        if not mine:
             continue
+        p, product = max(mine)
         for m in methods:
             v = ratio.get((s, m))
             if m in PEERS and v is not None and v > p:
                 ahead.append(f"{s}: `{m}` {v:.2f}x against `{product}`'s {p:.2f}x")
+    names = " or ".join(f"`{m}`" for m in FIXED_COUNT)
     if not ahead:
-        return [f"No peer beats `{product}` at equal time in these scenes.", ""]
-    return [f"Where a peer beats `{product}` at equal time (why: docs/competitors.md): " + "; ".join(ahead) + ".", ""]
+        return [f"No peer beats {names} at equal time in these scenes.", ""]
+    return [f"Where a peer beats the better of {names} at equal time (why: docs/competitors.md): " +
+            "; ".join(ahead) + ".", ""]
 
 
 def real_gpu_section(data, source):
@@ -472,7 +479,7 @@ def scene_section(scene, info, srows, bench_dir, htrender, tmp, outdir, skipped)
 
 
 def stress_section(data, outdir):
-    rows = data["results"]
+    rows = [r for r in data["results"] if r.get("device", "cpu") == "cpu"]  # lavapipe's: the efficiency table
     scenes = sorted({r["scene"] for r in rows})
     spps = sorted({r["spp"] for r in rows})
     md = ["## Stress scenes: where methods fail", "",
@@ -699,6 +706,7 @@ def main():
         md += scene_section(scene, info, srows, bench_dir, args.htrender, tmp, outdir, bench.get("skipped", []))
     stress = json.loads((Path(args.stress) / "results.json").read_text()) if args.stress else None
     md += efficiency_table(rows + (stress["results"] if stress else []))
+    md += efficiency_table(rows + (stress["results"] if stress else []), device="gpu")
     md += sampler_section(bench["results"])
     if args.floor:
         md += floor_section(json.loads((Path(args.floor) / "results.json").read_text()))

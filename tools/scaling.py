@@ -94,7 +94,7 @@ def main():
     p.add_argument("--tree-nside", default="256,512", help="Nsides of the tree-build sweep")
     p.add_argument("--big-map", default="8192x4096", help="size of the generated map of the tree-build sweep")
     p.add_argument("--spheres", default="1,16,128,1024,8192", help="the sphere-count sweep")
-    p.add_argument("--sphere-methods", default="mis,ht-vis,ht-frontier")
+    p.add_argument("--sphere-methods", default="mis,ht-vis,ht-frontier,ht-cut")
     p.add_argument("--sphere-devices", default="cpu,gpu")
     p.add_argument("--sphere-size", default="128x64", help="image size of the sphere-count sweep")
     p.add_argument("--sweeps", default="spp,nside,size,tree,spheres")
