@@ -330,6 +330,9 @@ void GpuRenderer::Impl::checkMethod(const RenderSettings& s) const {
   if (methodSpec(s.method).gpu->float64 && !usesFloat64(s.method))
     throw Error(fmt::format("method {} needs shaderFloat64 on the GPU ({} has none, or --gpu-precision is fp32); "
                             "use --device cpu", methodName(s.method), info.name));
+  if (methodSpec(s.method).gpu->subgroupVote && !ctx.info.subgroupVote)
+    throw Error(fmt::format("method {} needs subgroup vote operations in compute shaders on the GPU, which {} lacks; "
+                            "use --device cpu", methodName(s.method), info.name));
 }
 
 // Square tiles, a multiple of the workgroup, sized so that one dispatch

@@ -88,6 +88,7 @@ struct MethodMemory {
 struct GpuSupport {
   const char* shader;     // its family's compute shader: shaders/<shader>.comp.glsl
   bool float64 = false;   // only with shaderFloat64
+  bool subgroupVote = false;  // only with subgroupAny in compute shaders
   uint32_t maxTileSide = UINT32_MAX;
   // Loop iterations one sample costs (ht*: one traversal step), for the
   // first batch size; `shapes`: the spheres and planes a ray tests, about.

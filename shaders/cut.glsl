@@ -160,17 +160,31 @@ precise float cutWeightOf(CutNodeData n, bool withLobe, inout bool uncertain) {
     w = gCut.diffuse * d;
   }
   if (!(w > 0.0) || gCutCaps == 0u) return w;
-  precise float visible = 1.0;
+  // The caps' cheap tests first; the covered shares only where a lane of
+  // the SIMD group has a node a cap covers in part (subgroupAny: a branch
+  // the whole group takes or skips, where llvmpipe would otherwise run the
+  // shares' code for every node).
   float rn = n.chord;
   float cR = n.cosRb, sR = n.sinRb;
+  float dots[HT_MAX_CAPS];
+  uint partial = 0u;
+  bool inside = false;
   [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
     if (((gCutCaps >> k) & 1u) == 0u) continue;
     precise float d = dot3(centre, gCutCapAxis[k]);
     precise float innerTest = gCutCapSin[k] * cR - gCutCapCos[k] * sR;
-    precise float inside = innerTest > 0.0 ? gCutCapCos[k] * cR + gCutCapSin[k] * sR : 2.0;
-    precise float outside = gCutCapCos[k] * cR - gCutCapSin[k] * sR;
-    if (d >= inside) return 0.0;
-    if (d > outside) {
+    precise float insideCos = innerTest > 0.0 ? gCutCapCos[k] * cR + gCutCapSin[k] * sR : 2.0;
+    precise float outsideCos = gCutCapCos[k] * cR - gCutCapSin[k] * sR;
+    dots[k] = d;
+    inside = inside || d >= insideCos;
+    if (d > outsideCos) partial |= 1u << k;
+  }
+  if (inside) return 0.0;
+  precise float visible = 1.0;
+  if (subgroupAny(partial != 0u)) {
+    [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
+      if (((partial >> k) & 1u) == 0u) continue;
+      float d = dots[k];
       float chord = gCutCapChord[k];
       float small = min(rn, chord);
       precise float dist = sqrt(max(2.0 - 2.0 * d, 0.0));

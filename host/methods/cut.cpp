@@ -47,6 +47,7 @@ void cutMemory(const MemoryInputs& in, MethodMemory& m) {
 // level, each under the caps, and the average tree's below it.
 const GpuSupport kCutGpu{
     .shader = "cut",
+    .subgroupVote = true,
     .loopCost = [](const RenderSettings&, int envOrder, size_t shapes) {
       const uint64_t caps = std::min<uint64_t>(shapes, HT_MAX_CAPS);
       return uint64_t(5) * (4 + 4 * caps) + gpuDescentCost(envOrder, shapes);

@@ -177,6 +177,8 @@ PhysicalDeviceInfo describe(VkPhysicalDevice pd, uint32_t index) {
     d.driverName = driver.driverName;
     d.driverInfo = driver.driverInfo;
     d.subgroupSize = subgroup.subgroupSize;
+    d.subgroupVote = (subgroup.supportedOperations & VK_SUBGROUP_FEATURE_VOTE_BIT) != 0 &&
+                     (subgroup.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) != 0;
 
     VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
     VkPhysicalDeviceFeatures2 features2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};

@@ -47,6 +47,7 @@ struct PhysicalDeviceInfo {
   uint32_t maxTexelBufferElements = 0;
   uint32_t maxPushConstantsSize = 0;
   uint32_t subgroupSize = 0;
+  bool subgroupVote = false;  // subgroupAny in compute shaders (ht-cut)
   uint64_t deviceLocalBytes = 0;
 };
 
