@@ -34,14 +34,14 @@ for line in md.splitlines():
     cells = [c.strip() for c in line.strip("|").split("|")]
     if len(cells) == 6 and cells[1] == "4":
         rows[cells[0]] = cells
-assert set(rows) == {"mis", "ht-frontier", "ht-vis"}, rows
+assert set(rows) == {"mis", "ht-cut", "ht-frontier", "ht-vis"}, rows
 for m, c in rows.items():
     assert float(c[2]) > 0 and float(c[4]) > 0, c          # GPU ms, relMSE
     assert re.fullmatch(r"[0-9.e+-]+x", c[5]), c           # efficiency against mis
 assert rows["mis"][5] == "1x", rows["mis"]
 name = data["results"][0]["device_name"]
 assert md.startswith("# " + name), md[:80]
-assert {r["method"] for r in data["results"]} == {"mis", "ht-frontier", "ht-vis"}, data["results"]
+assert {r["method"] for r in data["results"]} == {"mis", "ht-cut", "ht-frontier", "ht-vis"}, data["results"]
 PY
 else
   fail "gpu-check.sh: $(tail -5 "$tmp/log")"

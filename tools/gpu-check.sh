@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The real-GPU check, one command for a machine with a GPU: builds htrender
 # (unless $BUILD_DIR holds one), renders spheres.json at 1920x1080 and
-# 16 spp with `mis`, the best product method (`ht-frontier`) and the seed's
+# 16 spp with `mis`, the product methods (`ht-cut`, `ht-frontier`) and the seed's
 # `ht-vis` on the first discrete GPU, side by side in one tools/bench.py run
 # against a reference rendered on the same GPU, and writes the table (GPU
 # ms, relMSE, efficiency against `mis`, the device's name) to
@@ -19,7 +19,7 @@ HEIGHT=${HEIGHT:-1080}
 SPP=${SPP:-16}
 REF_SPP=${REF_SPP:-2048}
 RUNS=${RUNS:-3}
-METHODS=${METHODS:-mis,ht-frontier,ht-vis}
+METHODS=${METHODS:-mis,ht-cut,ht-frontier,ht-vis}
 OUT=${OUT:-docs/report/gpu}
 BUILD=${BUILD_DIR:-build}
 # tools/bench.py needs numpy: the first Python that has it.
