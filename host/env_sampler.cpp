@@ -34,15 +34,17 @@ int pickRescaled(const float* w, double& u, float& prob) {
 
 EnvSample sampleEnvironment(const Environment& env, glm::dvec2 u) { return sampleEnvironment(env, env.tree, u); }
 
-EnvSample sampleEnvironment(const Environment& env, const MaxAvgTree& t, glm::dvec2 u) {
-  if (!(t.total() > 0.0)) return {glm::vec3(0.0f, 1.0f, 0.0f), 0, 0.0f};
+namespace {
+
+// Below node `node` of `level`, drawn with probability p: a child in four
+// by the average tree at each level down to the leaves, then the point
+// inside the leaf (u.x rescaled at each pick).
+EnvSample descendFrom(const Environment& env, const MaxAvgTree& t, int level, uint64_t node, double p, glm::dvec2 u) {
   double x = u.x;
-  float prob;
-  uint64_t node = uint64_t(pickRescaled<12>(&t.avgv[0], x, prob));
-  double p = prob;
-  for (int level = 1; level <= t.order; ++level) {
-    uint64_t first = 4 * node;
-    node = first + uint64_t(pickRescaled<4>(&t.avgv[MaxAvgTree::levelOffset(level) + first], x, prob));
+  for (int l = level + 1; l <= t.order; ++l) {
+    float prob;
+    const uint64_t first = 4 * node;
+    node = first + uint64_t(pickRescaled<4>(&t.avgv[MaxAvgTree::levelOffset(l) + first], x, prob));
     p *= prob;
   }
   EnvSample s;
@@ -52,24 +54,21 @@ EnvSample sampleEnvironment(const Environment& env, const MaxAvgTree& t, glm::dv
   return s;
 }
 
+}  // namespace
+
+EnvSample sampleEnvironment(const Environment& env, const MaxAvgTree& t, glm::dvec2 u) {
+  if (!(t.total() > 0.0)) return {glm::vec3(0.0f, 1.0f, 0.0f), 0, 0.0f};
+  float prob;
+  const uint64_t face = uint64_t(pickRescaled<12>(&t.avgv[0], u.x, prob));
+  return descendFrom(env, t, 0, face, double(prob), u);
+}
+
 int pickRescaled4(const float* w, double& u, float& prob) { return pickRescaled<4>(w, u, prob); }
 
 EnvSample sampleEnvironmentBelow(const Environment& env, const MaxAvgTree& t, int level, uint64_t node,
                                  glm::dvec2 u) {
   if (!(t.avg(level, node) > 0.0f)) return {glm::vec3(0.0f, 1.0f, 0.0f), 0, 0.0f};
-  double x = u.x;
-  double p = 1.0;
-  for (int l = level + 1; l <= t.order; ++l) {
-    float prob;
-    uint64_t first = 4 * node;
-    node = first + uint64_t(pickRescaled<4>(&t.avgv[MaxAvgTree::levelOffset(l) + first], x, prob));
-    p *= prob;
-  }
-  EnvSample s;
-  s.pixel = node;
-  s.dir = env.direction(env.order, node, std::min(float(x), kBelowOneF), std::min(float(u.y), kBelowOneF));
-  s.pdf = float(p / env.pixelSolidAngle());
-  return s;
+  return descendFrom(env, t, level, node, 1.0, u);
 }
 
 double environmentPixelProbabilityBelow(const MaxAvgTree& t, int level, uint64_t pixel) {
@@ -90,19 +89,13 @@ double environmentPixelProbability(const Environment& env, uint64_t pixel) {
 }
 
 double environmentPixelProbability(const MaxAvgTree& t, uint64_t pixel) {
-  double p = 1.0;
-  for (int level = t.order; level >= 1; --level) {
-    const float* siblings = &t.avgv[MaxAvgTree::levelOffset(level) + (pixel & ~uint64_t(3))];
-    float sum = siblings[0] + siblings[1] + siblings[2] + siblings[3];
-    float w = siblings[pixel & 3];
-    if (w <= 0.0f) return 0.0;
-    p *= double(w / sum);
-    pixel >>= 2;
-  }
+  const double p = environmentPixelProbabilityBelow(t, 0, pixel);
+  if (p == 0.0) return 0.0;
+  const uint64_t face = pixel >> (2 * t.order);
   float sum = 0.0f;
   for (int f = 0; f < 12; ++f) sum += t.avgv[f];
-  if (!(t.avgv[pixel] > 0.0f)) return 0.0;
-  return p * double(t.avgv[pixel] / sum);
+  if (!(t.avgv[face] > 0.0f)) return 0.0;
+  return p * double(t.avgv[face] / sum);
 }
 
 float environmentPdf(const Environment& env, const glm::vec3& dir) { return environmentPdf(env, env.tree, dir); }

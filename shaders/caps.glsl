@@ -3,6 +3,7 @@
 #ifndef HT_CAPS_GLSL
 #define HT_CAPS_GLSL
 
+#include "environment.glsl"
 #include "scene.glsl"
 
 // The selection of each invocation of the workgroup, entry j at
@@ -109,6 +110,40 @@ uint capSpheres(vec3 origin, vec3 normal) {
         sCapSphere[capAt(a + 1u)] = v;
       }
   return count;
+}
+
+// occluders() (host/ht.cpp), seen from the shadow rays' origin: slot j
+// below capSpheres' count the j-th chosen sphere's cap, then one slot per
+// plane (its far side); each with its axis in the HEALPix frame and the
+// sine of its half-angle. Returns the slots set (a sphere at the origin has
+// none).
+vec3 gOccluderAxis[HT_MAX_CAPS];
+float gOccluderSine[HT_MAX_CAPS];
+uint occluderSlots(vec3 position, vec3 normal) {
+  uint slots = 0u;
+  precise vec3 origin = offsetRayOrigin(position, normal);
+  const uint capped = capSpheres(origin, normal);
+  for (uint j = 0u; j < capped; ++j) {
+    GpuSphere sp = spheres[capSphere(j)];
+    precise vec3 d = sp.center - origin;
+    precise float dist = length3(d);
+    if (!(dist > 0.0)) continue;
+    precise vec3 unit = d / dist;
+    precise float ratio = sp.radius / dist;
+    gOccluderAxis[j] = normalize3(vec3(toHealpixFrame(unit)));
+    gOccluderSine[j] = min(1.0, ratio);
+    slots |= 1u << j;
+  }
+  for (uint k = 0u; k < scene.planeCount; ++k) {
+    GpuPlane p = planes[k];
+    precise vec3 rel = origin - p.point;
+    float side = dot3(rel, p.normal);
+    vec3 below = side >= 0.0 ? -p.normal : p.normal;
+    gOccluderAxis[capped + k] = normalize3(vec3(toHealpixFrame(below)));
+    gOccluderSine[capped + k] = 1.0;
+    slots |= 1u << (capped + k);
+  }
+  return slots;
 }
 
 #endif

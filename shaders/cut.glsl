@@ -79,7 +79,7 @@ void cutAddCap(uint k, vec3 axis, float s0) {
   gCutCaps |= 1u << k;
 }
 
-// CutPoint's constructor: the frame, the lobes, occluders() and the caps.
+// CutPoint's constructor: the frame, the lobes and the caps.
 void cutInit(Shading sh, vec3 position, vec3 normal) {
   precise vec3 s = vec3(toHealpixFrame(sh.frame.s));
   precise vec3 t = vec3(toHealpixFrame(sh.frame.t));
@@ -99,24 +99,9 @@ void cutInit(Shading sh, vec3 position, vec3 normal) {
   gCut.lobe.specularProbability = luminance(m.specular) > 0.0 ? 1.0 : 0.0;  // specularLobeProbability
   gCutCaps = 0u;
   if ((scene.cutFlags & HT_CUT_VISIBILITY) == 0u) return;
-  precise vec3 origin = offsetRayOrigin(position, normal);
-  const uint capped = capSpheres(origin, normal);
-  for (uint j = 0u; j < capped; ++j) {
-    GpuSphere sp = spheres[capSphere(j)];
-    precise vec3 d = sp.center - origin;
-    precise float dist = length3(d);
-    if (!(dist > 0.0)) continue;
-    precise vec3 unit = d / dist;
-    precise float ratio = sp.radius / dist;
-    cutAddCap(j, normalize3(vec3(toHealpixFrame(unit))), min(1.0, ratio));
-  }
-  for (uint k = 0u; k < scene.planeCount; ++k) {
-    GpuPlane p = planes[k];
-    precise vec3 rel = origin - p.point;
-    float side = dot3(rel, p.normal);
-    vec3 below = side >= 0.0 ? -p.normal : p.normal;
-    cutAddCap(capped + k, normalize3(vec3(toHealpixFrame(below))), 1.0);
-  }
+  const uint slots = occluderSlots(position, normal);
+  [[unroll]] for (uint k = 0u; k < kCapSlots; ++k)
+    if (((slots >> k) & 1u) != 0u) cutAddCap(k, gOccluderAxis[k], gOccluderSine[k]);
 }
 
 // cutClippedCosine.

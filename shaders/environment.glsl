@@ -80,52 +80,46 @@ struct EnvSample {
   float pdf;  // solid-angle density
 };
 
-EnvSample sampleEnvironment(hreal ux, hreal uy) {
-  EnvSample s;
-  if (scene.envHasLight == 0u) {
-    s.dir = vec3(0.0, 1.0, 0.0);
-    s.pixel = 0u;
-    s.pdf = 0.0;
-    return s;
-  }
-  hreal x = ux;
-  float prob;
-  uint node = pickRescaled(0u, 12u, x, prob);
-  precise hreal p = hreal(prob);
-  for (uint level = 1u; level <= scene.envOrder; ++level) {
-    uint first = 4u * node;
-    node = first + pickRescaled(levelOffset(level) + first, 4u, x, prob);
-    p *= hreal(prob);
-  }
-  const float kBelowOneF = uintBitsToFloat(0x3f7fffffu);
-  s.pixel = node;
-  s.dir = envDirection(scene.envOrder, node, min(float(x), kBelowOneF), min(float(uy), kBelowOneF));
-  precise hreal pdf = p / envPixelSolidAngle();
-  s.pdf = float(pdf);
-  return s;
-}
-
-// sampleEnvironmentBelow: below node `node` of `level`, by the average tree.
-EnvSample sampleEnvironmentBelow(uint level, uint node, hreal ux, hreal uy) {
-  EnvSample s;
-  s.dir = vec3(0.0, 1.0, 0.0);
-  s.pixel = 0u;
-  s.pdf = 0.0;
-  if (!(treeAvg(levelOffset(level) + node) > 0.0)) return s;
-  hreal x = ux;
-  precise hreal p = 1.0;
+// descendFrom (host/env_sampler.cpp): below node `node` of `level`, drawn
+// with probability p, a child in four by the average tree at each level,
+// then the point inside the leaf.
+EnvSample envDescendFrom(uint level, uint node, hreal p, hreal x, hreal uy) {
+  precise hreal q = p;
   for (uint l = level + 1u; l <= scene.envOrder; ++l) {
     float prob;
     uint first = 4u * node;
     node = first + pickRescaled(levelOffset(l) + first, 4u, x, prob);
-    p *= hreal(prob);
+    q *= hreal(prob);
   }
   const float kBelowOneF = uintBitsToFloat(0x3f7fffffu);
+  EnvSample s;
   s.pixel = node;
   s.dir = envDirection(scene.envOrder, node, min(float(x), kBelowOneF), min(float(uy), kBelowOneF));
-  precise hreal pdf = p / envPixelSolidAngle();
+  precise hreal pdf = q / envPixelSolidAngle();
   s.pdf = float(pdf);
   return s;
+}
+
+EnvSample envNoSample() {
+  EnvSample s;
+  s.dir = vec3(0.0, 1.0, 0.0);
+  s.pixel = 0u;
+  s.pdf = 0.0;
+  return s;
+}
+
+EnvSample sampleEnvironment(hreal ux, hreal uy) {
+  if (scene.envHasLight == 0u) return envNoSample();
+  hreal x = ux;
+  float prob;
+  uint face = pickRescaled(0u, 12u, x, prob);
+  return envDescendFrom(0u, face, hreal(prob), x, uy);
+}
+
+// sampleEnvironmentBelow: below node `node` of `level`, by the average tree.
+EnvSample sampleEnvironmentBelow(uint level, uint node, hreal ux, hreal uy) {
+  if (!(treeAvg(levelOffset(level) + node) > 0.0)) return envNoSample();
+  return envDescendFrom(level, node, hreal(1.0), ux, uy);
 }
 
 // environmentPixelProbabilityBelow: a leaf's probability inside its
@@ -147,19 +141,12 @@ hreal environmentPixelProbabilityBelow(uint level, uint pixel) {
 // environmentPixelProbability / pixel solid angle.
 float environmentPdf(vec3 dir) {
   uint pixel = envPixelOf(dir);
-  precise hreal p = 1.0;
-  for (uint level = scene.envOrder; level >= 1u; --level) {
-    uint first = levelOffset(level) + (pixel & ~3u);
-    precise float sum = treeAvg(first) + treeAvg(first + 1u) + treeAvg(first + 2u) + treeAvg(first + 3u);
-    float w = treeAvg(first + (pixel & 3u));
-    if (w <= 0.0) return 0.0;
-    precise float q = w / sum;
-    p *= hreal(q);
-    pixel >>= 2;
-  }
+  hreal p = environmentPixelProbabilityBelow(0u, pixel);
+  if (p == 0.0) return 0.0;
+  uint face = pixel >> (2u * scene.envOrder);
   precise float sum = 0.0;
   for (uint f = 0u; f < 12u; ++f) sum += treeAvg(f);
-  float top = treeAvg(pixel);
+  float top = treeAvg(face);
   if (!(top > 0.0)) return 0.0;
   precise float q = top / sum;
   precise hreal prob = p * hreal(q);

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <glm/geometric.hpp>
+#include <gtest/gtest.h>
 #include <tbb/blocked_range.h>
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
@@ -176,6 +177,35 @@ inline MeanAndError repeatedEstimates(const ShadingSetup& s, Method method, int 
   r.stdError = glm::sqrt(var / n);
   r.luminanceVariance = std::max(0.0, (total.lumSq / n - (total.lumSum / n) * (total.lumSum / n)) * (n / (n - 1.0)));
   return r;
+}
+
+// The setup's point on a flat surface (points nearby share its normal).
+inline ShadingSetup flat(ShadingSetup s) {
+  s.sp.flat = true;
+  return s;
+}
+
+// Every setup's mean over `batches` estimates of n directions by `method`,
+// for each n in `counts`, against the brute force on a sub x sub grid per
+// pixel (its error taken from the grid of half the size): z-tests
+// Sidak-corrected over setups, counts and channels.
+inline void expectUnbiasedAgainstBruteForce(const std::vector<ShadingSetup>& all, Method method,
+                                            const std::vector<int>& counts, int batches, uint32_t seedBase, int sub) {
+  const int tests = int(all.size() * counts.size() * 3);
+  const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
+  for (const ShadingSetup& s : all) {
+    const glm::dvec3 ref = bruteForceIntegral(s, sub);
+    const glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, sub / 2));
+    for (int n : counts) {
+      const MeanAndError e = repeatedEstimates(s, method, batches, n, seedBase + uint32_t(n));
+      for (int c = 0; c < 3; ++c) {
+        const double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
+        ASSERT_GT(se, 0.0) << s.name;
+        EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
+            << s.name << " n " << n << " channel " << c << ": mean " << e.mean[c] << " reference " << ref[c];
+      }
+    }
+  }
 }
 
 }  // namespace ht::test

@@ -26,11 +26,6 @@ const Environment& sunrise() {
   return env;
 }
 
-ShadingSetup flat(ShadingSetup s) {
-  s.sp.flat = true;
-  return s;
-}
-
 // Shading points that take each path: a flat Lambert point (shared table),
 // a Lambert point off any plane's table (own table), glossy points whose
 // tables are coarse for the BRDF (BRDF samples by MIS), occluders.
@@ -75,26 +70,8 @@ void prepare(const ShadingSetup& s, const FrontierOptions& options, int n, Prepa
   p.frontier.build(*p.point, p.sp, options, n, p.tables.own<FrontierColours>());
 }
 
-// Every setup's mean over `batches` estimates of n directions, for each n
-// in `counts`, against the brute force on a sub x sub grid per pixel (its
-// error taken from the grid of half the size).
 void expectUnbiased(const std::vector<int>& counts, int batches, uint32_t seedBase, int sub) {
-  const std::vector<ShadingSetup> all = setups();
-  const int tests = int(all.size() * counts.size() * 3);
-  const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / tests));
-  for (const ShadingSetup& s : all) {
-    const glm::dvec3 ref = bruteForceIntegral(s, sub);
-    const glm::dvec3 refError = glm::abs(ref - bruteForceIntegral(s, sub / 2));
-    for (int n : counts) {
-      MeanAndError e = repeatedEstimates(s, Method::HtFrontier, batches, n, seedBase + uint32_t(n));
-      for (int c = 0; c < 3; ++c) {
-        const double se = std::sqrt(e.stdError[c] * e.stdError[c] + refError[c] * refError[c]);
-        ASSERT_GT(se, 0.0) << s.name;
-        EXPECT_LT(std::abs(e.mean[c] - ref[c]) / se, zCrit)
-            << s.name << " n " << n << " channel " << c << ": mean " << e.mean[c] << " reference " << ref[c];
-      }
-    }
-  }
+  expectUnbiasedAgainstBruteForce(setups(), Method::HtFrontier, counts, batches, seedBase, sub);
 }
 
 }  // namespace
