@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cmath>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -184,6 +185,37 @@ inline ShadingSetup flat(ShadingSetup s) {
   s.sp.flat = true;
   return s;
 }
+
+#ifdef HT_TEST_DATA
+// Shading points that take each path of the fixed-count product methods
+// (ht-frontier, ht-cut), under sunrise.exr and a one-pixel sun at 2^order:
+// flat and curved diffuse points with and without occluders, glossy points
+// with both lobes and with a lobe alone (conductors) down to GGX alpha
+// 0.01, a grazing view on a flat glossy surface, a conductor mirroring the sun.
+inline std::vector<ShadingSetup> productSetups(int order) {
+  static std::map<int, Environment> maps;
+  if (!maps.count(order)) maps.emplace(order, sunriseAt(order));
+  const Environment& sunrise = maps.at(order);
+  std::vector<ShadingSetup> s;
+  s.push_back(flat(makeSetup("flat-diffuse-sunrise-occluded", sunrise, lambert(0.8f), {0.3f, 1.0f, 0.2f},
+                             {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}, {glm::vec3(1.5f, 0.4f, -0.3f), 0.4f, 0}})));
+  s.push_back(makeSetup("diffuse-sunrise", sunrise, lambert(0.8f), {0.3f, 1.0f, 0.2f}));
+  s.push_back(makeSetup("ggx0.05-sunrise", sunrise, ggx(0.05f, glm::vec3(0.9f, 0.7f, 0.4f)), {0.2f, 0.5f, -0.8f}));
+  s.push_back(makeSetup("phong-sunrise-occluded", sunrise, phong(40.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
+                        {-0.4f, 0.6f, 0.3f}, {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}}));
+  s.push_back(flat(makeSetup("flat-diffuse-sun-shadowed", onePixelSun(order), lambert(0.8f), {0.0f, 1.0f, 0.3f},
+                             {{2.0f * kSunDir, 0.4f, 0}})));
+  s.push_back(makeSetup("ggx0.3-sun", onePixelSun(order), ggx(0.3f, glm::vec3(0.04f), glm::vec3(0.5f)),
+                        mirrorOf(kSunDir)));
+  s.push_back(makeSetup("ggx0.01-sunrise", sunrise, ggx(0.01f, glm::vec3(0.95f)), {0.3f, 0.6f, -0.5f}));
+  s.push_back(flat(makeSetup("flat-ggx0.05-plastic-grazing-sunrise-occluded", sunrise,
+                             ggx(0.05f, glm::vec3(0.04f), glm::vec3(0.3f)), {0.1f, 0.06f, 1.0f},
+                             {{glm::vec3(0.0f, 0.4f, -1.0f), 0.4f, 0}})));
+  s.push_back(flat(makeSetup("flat-ggx0.1-conductor-sun", onePixelSun(order), ggx(0.1f, glm::vec3(0.9f)),
+                             mirrorOf(kSunDir))));
+  return s;
+}
+#endif
 
 // Every setup's mean over `batches` estimates of n directions by `method`,
 // for each n in `counts`, against the brute force on a sub x sub grid per

@@ -26,29 +26,7 @@ const Environment& sunrise() {
   return env;
 }
 
-// Points that take each path: diffuse ones with and without occluders (the
-// caps, the refined nodes of the cut), glossy ones with both lobes (the
-// specular lobe by the BRDF technique) and with a lobe alone (its weights
-// at the centroids), a grazing view, a one-pixel sun.
-std::vector<ShadingSetup> setups() {
-  std::vector<ShadingSetup> s;
-  s.push_back(flat(makeSetup("flat-diffuse-sunrise-occluded", sunrise(), lambert(0.8f), {0.3f, 1.0f, 0.2f},
-                             {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}, {glm::vec3(1.5f, 0.4f, -0.3f), 0.4f, 0}})));
-  s.push_back(makeSetup("diffuse-sunrise", sunrise(), lambert(0.8f), {0.3f, 1.0f, 0.2f}));
-  s.push_back(makeSetup("ggx0.05-conductor-sunrise", sunrise(), ggx(0.05f, glm::vec3(0.9f, 0.7f, 0.4f)),
-                        {0.2f, 0.5f, -0.8f}));
-  s.push_back(makeSetup("phong-sunrise-occluded", sunrise(), phong(40.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
-                        {-0.4f, 0.6f, 0.3f}, {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}}));
-  s.push_back(flat(makeSetup("flat-diffuse-sun-shadowed", onePixelSun(kEnvOrder), lambert(0.8f), {0.0f, 1.0f, 0.3f},
-                             {{2.0f * kSunDir, 0.4f, 0}})));
-  s.push_back(makeSetup("ggx0.3-plastic-sun", onePixelSun(kEnvOrder), ggx(0.3f, glm::vec3(0.04f), glm::vec3(0.5f)),
-                        mirrorOf(kSunDir)));
-  s.push_back(makeSetup("ggx0.01-conductor-sunrise", sunrise(), ggx(0.01f, glm::vec3(0.95f)), {0.3f, 0.6f, -0.5f}));
-  s.push_back(flat(makeSetup("flat-ggx0.05-plastic-grazing-sunrise-occluded", sunrise(),
-                             ggx(0.05f, glm::vec3(0.04f), glm::vec3(0.3f)), {0.1f, 0.06f, 1.0f},
-                             {{glm::vec3(0.0f, 0.4f, -1.0f), 0.4f, 0}})));
-  return s;
-}
+std::vector<ShadingSetup> setups() { return productSetups(kEnvOrder); }
 
 // One point's density over the cut.
 struct PreparedPoint {
@@ -102,7 +80,9 @@ TEST(Cut, NodesPartitionTheSphere) {
     for (uint64_t l = 0; l < holder.size(); ++l) ASSERT_EQ(int(cut.cutNodeOf(env, l)), holder[l]) << "pixel " << l;
     // Past the base faces, the sun's pixel sits in a node of the deepest
     // level the cut allows: power is what splits.
-    if (k > 12) EXPECT_EQ(cut.nodes[cut.cutNodeOf(env, env.pixelOf(kSunDir))].level, kCutMaxLevel) << k << " nodes";
+    if (k > 12) {
+      EXPECT_EQ(cut.nodes[cut.cutNodeOf(env, env.pixelOf(kSunDir))].level, kCutMaxLevel) << k << " nodes";
+    }
   }
   const EnvCut cut = buildEnvCut(env, *g, 64);
   for (int level = 0; level < cut.momentLevel; ++level)

@@ -26,32 +26,7 @@ const Environment& sunrise() {
   return env;
 }
 
-// Shading points that take each path: a flat Lambert point (shared table),
-// a Lambert point off any plane's table (own table), glossy points whose
-// tables are coarse for the BRDF (BRDF samples by MIS), occluders.
-std::vector<ShadingSetup> setups() {
-  std::vector<ShadingSetup> s;
-  s.push_back(flat(makeSetup("flat-diffuse-sunrise-occluded", sunrise(), lambert(0.8f), {0.3f, 1.0f, 0.2f},
-                             {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}, {glm::vec3(1.5f, 0.4f, -0.3f), 0.4f, 0}})));
-  s.push_back(makeSetup("diffuse-sunrise", sunrise(), lambert(0.8f), {0.3f, 1.0f, 0.2f}));
-  s.push_back(makeSetup("ggx0.05-sunrise", sunrise(), ggx(0.05f, glm::vec3(0.9f, 0.7f, 0.4f)), {0.2f, 0.5f, -0.8f}));
-  s.push_back(makeSetup("phong-sunrise-occluded", sunrise(), phong(40.0f, glm::vec3(0.4f), glm::vec3(0.3f)),
-                        {-0.4f, 0.6f, 0.3f}, {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}}));
-  s.push_back(flat(makeSetup("flat-diffuse-sun-shadowed", onePixelSun(kEnvOrder), lambert(0.8f), {0.0f, 1.0f, 0.3f},
-                             {{2.0f * kSunDir, 0.4f, 0}})));
-  s.push_back(makeSetup("ggx0.3-sun", onePixelSun(kEnvOrder), ggx(0.3f, glm::vec3(0.04f), glm::vec3(0.5f)),
-                        mirrorOf(kSunDir)));
-  s.push_back(makeSetup("ggx0.01-sunrise", sunrise(), ggx(0.01f, glm::vec3(0.95f)), {0.3f, 0.6f, -0.5f}));
-  // Flat surfaces with a specular lobe: the diffuse lobe's shared table and
-  // the lobe sampled apart; a grazing view, and a conductor (no diffuse
-  // lobe) that mirrors the sun.
-  s.push_back(flat(makeSetup("flat-ggx0.05-plastic-grazing-sunrise-occluded", sunrise(),
-                             ggx(0.05f, glm::vec3(0.04f), glm::vec3(0.3f)), {0.1f, 0.06f, 1.0f},
-                             {{glm::vec3(0.0f, 0.4f, -1.0f), 0.4f, 0}})));
-  s.push_back(flat(makeSetup("flat-ggx0.1-conductor-sun", onePixelSun(kEnvOrder), ggx(0.1f, glm::vec3(0.9f)),
-                             mirrorOf(kSunDir))));
-  return s;
-}
+std::vector<ShadingSetup> setups() { return productSetups(kEnvOrder); }
 
 struct PreparedPoint {
   ShadingPoint sp;
