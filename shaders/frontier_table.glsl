@@ -164,13 +164,31 @@ void frontierAddCap(uint k, vec3 axis, float s0) {
   gFrCaps |= 1u << k;
 }
 
-// occluders() and lightCaps.
+// occluders() and lightCaps, seen from the shadow rays' origin. The loop
+// of caps.glsl's occluderSlots, inline: its arrays of every slot's axis and
+// sine, alive at once, raised this pipeline's peak from 192 to 216 VGPRs
+// under RADV (tests/shader_stats_test.sh).
 void frontierCaps(vec3 position, vec3 normal) {
   gFrCaps = 0u;
   if ((gFrFlags & HT_FRONTIER_VISIBILITY) == 0u) return;
-  const uint slots = occluderSlots(position, normal);
-  [[unroll]] for (uint k = 0u; k < kCapSlots; ++k)
-    if (((slots >> k) & 1u) != 0u) frontierAddCap(k, gOccluderAxis[k], gOccluderSine[k]);
+  precise vec3 origin = offsetRayOrigin(position, normal);
+  const uint capped = capSpheres(origin, normal);
+  for (uint j = 0u; j < capped; ++j) {
+    GpuSphere sp = spheres[capSphere(j)];
+    precise vec3 d = sp.center - origin;
+    precise float dist = length3(d);
+    if (!(dist > 0.0)) continue;
+    precise vec3 unit = d / dist;
+    precise float ratio = sp.radius / dist;
+    frontierAddCap(j, normalize3(vec3(toHealpixFrame(unit))), min(1.0, ratio));
+  }
+  for (uint k = 0u; k < scene.planeCount; ++k) {
+    GpuPlane p = planes[k];
+    precise vec3 rel = origin - p.point;
+    float side = dot3(rel, p.normal);
+    vec3 below = side >= 0.0 ? -p.normal : p.normal;
+    frontierAddCap(capped + k, normalize3(vec3(toHealpixFrame(below))), 1.0);
+  }
 }
 
 // A cap's thresholds at a level (LightCap::cosInside, cosOutside).
