@@ -64,7 +64,7 @@ float cutDiscSin(int level);
 // The mean of cos+ over a small disc of radius R whose centre lies at
 // elevation E, from sin E and sin R: sin R x m(sin E / sin R), m the
 // clipped disc's exact mean approximated by (1 + a)^2 / 4 x (89/128 +
-// 39/256 (1 + a)) (within 0.02 of it; exact at a = -1 and 1; the constants
+// 39/256 (1 + a)) (within 0.023 of it; exact at a = -1 and 1; the constants
 // exact in float, as the shader's literals must be).
 inline float cutClippedCosine(float sinE, float sinR) {
   const float a = sinE / sinR;

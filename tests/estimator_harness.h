@@ -187,15 +187,20 @@ inline ShadingSetup flat(ShadingSetup s) {
 }
 
 #ifdef HT_TEST_DATA
+// sunriseAt(order), read once per order.
+inline const Environment& sunriseCached(int order) {
+  static std::map<int, Environment> maps;
+  if (!maps.count(order)) maps.emplace(order, sunriseAt(order));
+  return maps.at(order);
+}
+
 // Shading points that take each path of the fixed-count product methods
 // (ht-frontier, ht-cut), under sunrise.exr and a one-pixel sun at 2^order:
 // flat and curved diffuse points with and without occluders, glossy points
 // with both lobes and with a lobe alone (conductors) down to GGX alpha
 // 0.01, a grazing view on a flat glossy surface, a conductor mirroring the sun.
 inline std::vector<ShadingSetup> productSetups(int order) {
-  static std::map<int, Environment> maps;
-  if (!maps.count(order)) maps.emplace(order, sunriseAt(order));
-  const Environment& sunrise = maps.at(order);
+  const Environment& sunrise = sunriseCached(order);
   std::vector<ShadingSetup> s;
   s.push_back(flat(makeSetup("flat-diffuse-sunrise-occluded", sunrise, lambert(0.8f), {0.3f, 1.0f, 0.2f},
                              {{glm::vec3(-1.0f, 1.0f, 0.5f), 0.8f, 0}, {glm::vec3(1.5f, 0.4f, -0.3f), 0.4f, 0}})));

@@ -21,10 +21,7 @@ namespace {
 
 constexpr int kEnvOrder = 5;
 
-const Environment& sunrise() {
-  static const Environment env = sunriseAt(kEnvOrder);
-  return env;
-}
+const Environment& sunrise() { return sunriseCached(kEnvOrder); }
 
 std::vector<ShadingSetup> setups() { return productSetups(kEnvOrder); }
 
