@@ -116,9 +116,9 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
   const bool hasLobe = m.type != MaterialType::Lambert && luminance(m.specular) > 0.0f;
   apart = hasLobe && luminance(m.diffuse) > 0.0f;
   lobeOnly = hasLobe && !apart;
-  // A lobe alone: the cut's weights read it at the light's centroid; below
-  // the cut the children weigh as a diffuse lobe of its reflectance would.
-  diffuse = (lobeOnly ? luminance(m.specular) : luminance(m.diffuse)) * kInvPi;
+  // A lobe alone: every node's weight reads it at the node's light's
+  // centroid, the cut's and those below it.
+  diffuse = luminance(m.diffuse) * kInvPi;
   lobe = m;
   lobe.diffuse = glm::vec3(0.0f);
   if (!options.visibility) return;
@@ -235,7 +235,7 @@ double CutDensity::nodeProbability(uint32_t k) const { return double((cum_[k + 1
 
 void CutDensity::childWeights(int level, uint64_t parent, float (&w)[4]) const {
   const uint64_t first = MaxAvgTree::levelOffset(level) + 4 * parent;
-  for (int j = 0; j < 4; ++j) w[j] = point_->weight(level, first + uint64_t(j), false);
+  for (int j = 0; j < 4; ++j) w[j] = point_->weight(level, first + uint64_t(j), point_->lobeOnly);
   if (!(((w[0] + w[1]) + w[2]) + w[3] > 0.0f))
     for (int j = 0; j < 4; ++j) w[j] = env_->tree.avgv[first + uint64_t(j)];
 }

@@ -132,7 +132,7 @@ struct CutPoint {
   float minPartial;
   glm::vec3 s, t, normal;  // the shading frame
   glm::vec3 woLocal;
-  float diffuse;  // luminance of the diffuse albedo (of the specular one for a lobe alone) / pi
+  float diffuse;  // luminance of the diffuse albedo / pi
   bool apart;     // a diffuse and a specular lobe: the weights hold the diffuse one
   bool lobeOnly;  // a specular lobe alone
   Material lobe;     // the material without its diffuse lobe
@@ -141,7 +141,7 @@ struct CutPoint {
 
 // The density a point samples its cut directions from: the cut's prefix
 // sums over the point's weights, and below a node the children by their
-// weights (the diffuse form) down to productLevel, by the average tree below.
+// weights down to productLevel, by the average tree below.
 class CutDensity {
  public:
   // Weighs the cut at `point` (which it keeps a reference to), reusing its storage.

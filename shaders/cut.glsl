@@ -92,7 +92,7 @@ void cutInit(Shading sh, vec3 position, vec3 normal) {
   bool hasLobe = m.type != HT_MATERIAL_LAMBERT && luminance(m.specular) > 0.0;
   gCut.apart = hasLobe && luminance(m.diffuse) > 0.0;
   gCut.lobeOnly = hasLobe && !gCut.apart;
-  precise float diffuse = (gCut.lobeOnly ? luminance(m.specular) : luminance(m.diffuse)) * kInvPi;
+  precise float diffuse = luminance(m.diffuse) * kInvPi;
   gCut.diffuse = diffuse;
   gCut.lobe = m;
   gCut.lobe.diffuse = vec3(0.0);
@@ -123,7 +123,9 @@ precise float cutWeightOf(CutNodeData n, bool withLobe, inout bool uncertain) {
   precise float sinE = dot3(centre, gCut.normal);
   float sinR = n.sinR;
   precise float w = 0.0;
-  if (withLobe) {
+  // The lobe's code behind subgroupAny: a SIMD group without a lobe alone
+  // skips it.
+  if (subgroupAny(withLobe) && withLobe) {
     precise float len = sqrt(dot3(m, m));
     if (len > 0.0) {
       precise vec3 c = m / len;
@@ -186,7 +188,7 @@ precise float cutWeightOf(CutNodeData n, bool withLobe, inout bool uncertain) {
 }
 
 precise float cutWeight(uint level, uint at, inout bool uncertain) {
-  return cutWeightOf(cutTreeNode(level, at), false, uncertain);
+  return cutWeightOf(cutTreeNode(level, at), gCut.lobeOnly, uncertain);
 }
 
 // The children of `parent` (of level - 1) by their weights, by the average
