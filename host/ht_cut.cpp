@@ -290,7 +290,7 @@ glm::vec3 estimateHtCut(const Scene& scene, const ShadingPoint& sp, const CutOpt
   // the specular lobe for its share of the light (ht-frontier's
   // frontierLobeCount: reflectance x the map's average around the mirror
   // direction against the weights' total). A specular lobe alone gives
-  // options.brdfShare of the directions to the BRDF.
+  // cutLobeShare of the directions to the BRDF.
   const Material& bm = point.apart ? point.lobe : mat;
   float share = 0.0f;
   if (point.apart) {
@@ -304,7 +304,7 @@ glm::vec3 estimateHtCut(const Scene& scene, const ShadingPoint& sp, const CutOpt
     const float lobeLight = reflectance * mirrorRadiance;
     share = std::clamp(lobeLight / (lobeLight + total), kCutMinShare, 1.0f - kCutMinShare);
   } else if (point.lobeOnly) {
-    share = options.brdfShare;
+    share = cutLobeShare(mat, g.levelSinRadius[size_t(std::min(options.productLevel, cut.momentLevel))]);
   }
   // Fixed counts, at least one of each technique that has a share; one
   // direction picks its technique with the shares as probabilities.

@@ -31,7 +31,9 @@
 // runs the same loops.
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -99,8 +101,18 @@ struct EnvCut {
 // The cut of `nodes` nodes (12 to HT_CUT_MAX_NODES); `g`: the map's order.
 EnvCut buildEnvCut(const Environment& env, const HtGeometry& g, int nodes);
 
+// A lobe alone's share of its n directions drawn from the BRDF,
+// rho / (rho + w) within [1/4, 3/4]: w the lobe's width (GGX alpha; Phong
+// 1 / (2 sqrt(exponent + 1)), its spread about the mirror direction being
+// twice GGX's alpha's), rho the bounding radius of the descent's finest
+// nodes. The cut's directions follow a lobe as far as its nodes resolve it;
+// a narrower one is left more to the BRDF.
+inline float cutLobeShare(const Material& m, float rho) {
+  const float width = m.type == MaterialType::Phong ? 0.5f / std::sqrt(m.exponent + 1.0f) : m.alpha;
+  return std::clamp(rho / (rho + width), 0.25f, 0.75f);
+}
+
 struct CutOptions {
-  float brdfShare = 0.5f;             // n_b / n at a point with a specular lobe alone
   float minPartialVisibility = 0.1f;  // a partly covered node's visible share, at least
   int productLevel = 5;               // children by their weights down to this level
   bool visibility = true;             // the caps in the weights

@@ -282,7 +282,7 @@ struct GpuScene {
   uint cutMomentLevel;
   uint cutProductLevel;  // CutOptions::productLevel, at most cutMomentLevel
   uint cutFlags;         // HT_CUT_VISIBILITY, HT_CUT_COLOUR_CONTROL
-  float cutBrdfShare;    // CutOptions::brdfShare
+  float cutLobeRadius;   // cutLobeShare's rho
   float cutMinPartial;   // CutOptions::minPartialVisibility
   float cutCapCosMargin, cutCapSinMargin;  // cos and sin of kCapMargin
   uint cutReserved;

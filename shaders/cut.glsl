@@ -313,7 +313,12 @@ CutPlan cutPlan(Shading sh, float total, uint n, uint rngState) {
     precise float ratio = lobeLight / (lobeLight + total);
     share = clamp(ratio, float(HT_CUT_MIN_SHARE), 1.0 - float(HT_CUT_MIN_SHARE));
   } else if (gCut.lobeOnly) {
-    share = scene.cutBrdfShare;
+    // cutLobeShare.
+    GpuMaterial m = sh.material;
+    precise float width = m.type == HT_MATERIAL_PHONG ? 0.5 / sqrt(m.exponent + 1.0) : m.alpha;
+    precise float rho = scene.cutLobeRadius;
+    precise float ratio = rho / (rho + width);
+    share = clamp(ratio, 0.25, 0.75);
   }
   bool mixture = n == 1u && share > 0.0;
   uint nb = 0u;
