@@ -1,6 +1,7 @@
 #include "ht_cut.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <queue>
 
@@ -123,17 +124,35 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
   lobe.diffuse = glm::vec3(0.0f);
   if (!options.visibility) return;
   const float cm = std::cos(kCapMargin), sm = std::sin(kCapMargin);
+  thread_local std::vector<LightCap> kept;
+  kept.clear();
   for (const Occluder& o : occluders(scene, sp)) {
     // The plane the point lies on: its cap is the point's horizon, which
     // the weights already hold.
     if (glm::dot(o.axis, normal) < -0.9999f) continue;
-    CutCap c;
-    if (!frontierCap(o.axis, o.sinHalfAngle, g, c.cap)) continue;
+    LightCap c;
+    if (!frontierCap(o.axis, o.sinHalfAngle, g, c)) continue;
+    kept.push_back(c);
     // frontierCap's cos of the half-angle less the margin.
     const float s0 = o.sinHalfAngle, c0 = std::sqrt(1.0f - s0 * s0);
     const float cosA = c0 * cm + s0 * sm;
-    c.chord = std::sqrt(std::max(2.0f - 2.0f * cosA, 0.0f));
-    caps.push_back(c);
+    caps.chord.push_back(std::sqrt(std::max(2.0f - 2.0f * cosA, 0.0f)));
+  }
+  const size_t n = kept.size(), levels = size_t(g.order) + 1;
+  caps.count = int(n);
+  caps.x.resize(n);
+  caps.y.resize(n);
+  caps.z.resize(n);
+  caps.inside.resize(levels * n);
+  caps.outside.resize(levels * n);
+  for (size_t j = 0; j < n; ++j) {
+    caps.x[j] = kept[j].axis.x;
+    caps.y[j] = kept[j].axis.y;
+    caps.z[j] = kept[j].axis.z;
+    for (size_t l = 0; l < levels; ++l) {
+      caps.inside[l * n + j] = kept[j].cosInside[l];
+      caps.outside[l * n + j] = kept[j].cosOutside[l];
+    }
   }
 }
 
@@ -171,19 +190,35 @@ float CutPoint::weight(int level, uint64_t at, bool withLobe, bool* uncertain) c
     d = std::max(d, kCutHorizonFloor * power * std::max(top, 0.0f));
     w = diffuse * d;
   }
-  if (!(w > 0.0f) || caps.empty()) return w;
+  const size_t n = size_t(caps.count);
+  if (!(w > 0.0f) || n == 0) return w;
+  // The tests of 64 caps at a time in a loop without branches, then the
+  // covered shares of those that cover the node in part.
+  const float* inside = caps.inside.data() + l * n;
+  const float* outside = caps.outside.data() + l * n;
+  const float *x = caps.x.data(), *y = caps.y.data(), *z = caps.z.data();
   float visible = 1.0f;
   const float rn = cut.discChord[l];
-  for (const CutCap& c : caps) {
-    const float d = glm::dot(centre, c.cap.axis);
-    if (d >= c.cap.cosInside[l]) return 0.0f;
-    if (d > c.cap.cosOutside[l]) {
-      const float small = std::min(rn, c.chord);
+  for (size_t base = 0; base < n; base += 64) {
+    const size_t end = std::min(n, base + 64);
+    bool covered = false;
+    uint64_t partial = 0;
+    for (size_t j = base; j < end; ++j) {
+      const float d = (centre.x * x[j] + centre.y * y[j]) + centre.z * z[j];
+      covered |= d >= inside[j];
+      partial |= uint64_t(d > outside[j]) << (j - base);
+    }
+    if (covered) return 0.0f;
+    for (; partial != 0; partial &= partial - 1) {
+      const size_t j = base + size_t(std::countr_zero(partial));
+      const float d = (centre.x * x[j] + centre.y * y[j]) + centre.z * z[j];
+      const float chord = caps.chord[j];
+      const float small = std::min(rn, chord);
       const float dist = std::sqrt(std::max(2.0f - 2.0f * d, 0.0f));
-      const float x = std::clamp((dist - std::abs(rn - c.chord)) / (2.0f * small), 0.0f, 1.0f);
+      const float s = std::clamp((dist - std::abs(rn - chord)) / (2.0f * small), 0.0f, 1.0f);
       const float ratio = small / rn;
-      const float covered = (1.0f - x * x * (3.0f - 2.0f * x)) * (ratio * ratio);
-      visible = std::min(visible, 1.0f - covered);
+      const float share = (1.0f - s * s * (3.0f - 2.0f * s)) * (ratio * ratio);
+      visible = std::min(visible, 1.0f - share);
     }
   }
   if (uncertain && visible < 1.0f) *uncertain = true;

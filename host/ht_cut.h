@@ -123,10 +123,11 @@ struct MethodOptions;
 // ht-cut's options for a render's method options.
 CutOptions cutOptionsFor(const MethodOptions& options);
 
-// A point's cap: frontierCap's thresholds and the chord of its radius.
-struct CutCap {
-  LightCap cap;
-  float chord;
+// A point's caps, a column per quantity: axes, the chords of their radii,
+// and frontierCap's thresholds per level (entry level x count + cap).
+struct CutCaps {
+  int count = 0;
+  std::vector<float> x, y, z, chord, inside, outside;
 };
 
 // What weighs the tree's nodes at one shading point (HEALPix frame).
@@ -148,7 +149,7 @@ struct CutPoint {
   bool apart;     // a diffuse and a specular lobe: the weights hold the diffuse one
   bool lobeOnly;  // a specular lobe alone
   Material lobe;     // the material without its diffuse lobe
-  std::vector<CutCap> caps;
+  CutCaps caps;
 };
 
 // The density a point samples its cut directions from: the cut's prefix
