@@ -114,7 +114,7 @@ inline float cutLobeShare(const Material& m, float rho) {
 
 struct CutOptions {
   float minPartialVisibility = 0.1f;  // a partly covered node's visible share, at least
-  int productLevel = 5;               // children by their weights down to this level
+  int productLevel = 6;               // children by their weights down to this level
   bool visibility = true;             // the caps in the weights
   bool colourControl = true;          // the control variate on colour
 };
