@@ -119,6 +119,12 @@ struct CutOptions {
   bool colourControl = true;          // the control variate on colour
 };
 
+// cutLobeShare's rho for `options`: the bounding radius (sine) of the
+// descent's finest nodes.
+inline float cutLobeRadius(const CutOptions& options, const EnvCut& cut, const HtGeometry& g) {
+  return g.levelSinRadius[size_t(std::clamp(options.productLevel, 0, cut.momentLevel))];
+}
+
 struct MethodOptions;
 // ht-cut's options for a render's method options.
 CutOptions cutOptionsFor(const MethodOptions& options);
