@@ -132,15 +132,21 @@ Bvh buildBvh(const std::vector<Sphere>& spheres) {
   return bvh;
 }
 
+namespace {
+// std::fmin / std::fmax, inline: with one argument NaN, the other.
+float minNum(float a, float b) { return b < a || a != a ? b : a; }
+float maxNum(float a, float b) { return b > a || a != a ? b : a; }
+}  // namespace
+
 bool rayBox(const BvhNode& node, const glm::vec3& o, const glm::vec3& inv, float tMax, float& t0) {
-  // fmin/fmax never return the NaN of 0 x inf (a ray parallel to a slab,
-  // starting on its plane): such a box is missed, and no sphere lies there,
-  // every one being inside its box by the pad.
+  // minNum/maxNum never return the NaN of 0 x inf (a ray parallel to a
+  // slab, starting on its plane): such a box is missed, and no sphere lies
+  // there, every one being inside its box by the pad.
   float enter = 0.0f, exit = tMax;
   for (int a = 0; a < 3; ++a) {
     const float ta = (node.lo[a] - o[a]) * inv[a], tb = (node.hi[a] - o[a]) * inv[a];
-    enter = std::fmax(enter, std::fmin(ta, tb));
-    exit = std::fmin(exit, std::fmax(ta, tb));
+    enter = maxNum(enter, minNum(ta, tb));
+    exit = minNum(exit, maxNum(ta, tb));
   }
   t0 = enter;
   // The slack covers the slabs' rounding, which grows with the ray's

@@ -128,7 +128,7 @@ size_t capSphereCount(const Scene& scene) { return kMaxCaps - std::min(kMaxCaps,
 std::vector<Occluder> occluders(const Scene& scene, const ShadingPoint& sp) {
   const Environment& env = scene.environment;
   std::vector<Occluder> out;
-  out.reserve(scene.spheres.size() + scene.planes.size());
+  out.reserve(std::max(kMaxCaps, scene.planes.size()));
   const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
   for (const uint32_t i : capSpheres(scene, origin, sp.normal, capSphereCount(scene))) {
     const Sphere& s = scene.spheres[i];
