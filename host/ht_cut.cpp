@@ -1,7 +1,7 @@
 #include "ht_cut.h"
 
 #include <algorithm>
-#include <bit>
+#include <limits>
 #include <cmath>
 #include <queue>
 
@@ -102,6 +102,15 @@ EnvCut buildEnvCut(const Environment& env, const HtGeometry& g, int nodes) {
     cut.nodes.push_back({i.level, i.node, lum > 0.0 ? glm::vec3(radiance / lum) : glm::vec3(0.0f)});
     std::fill_n(cut.lookup.begin() + int64_t(firstBelow(i)), uint64_t(1) << (2 * (maxLevel - i.level)), k);
   }
+  const size_t K = cut.nodes.size();
+  cut.lights.assign(5 * K, CutLight{glm::vec3(0.0f), 0.0f, glm::vec3(0.0f), 0});
+  for (size_t k = 0; k < K; ++k) {
+    const CutNode& n = cut.nodes[k];
+    cut.lights[k] = cut.light(tree, g, n.level, MaxAvgTree::levelOffset(n.level) + n.node);
+    if (n.level < cut.momentLevel)
+      for (uint64_t j = 0; j < 4; ++j)
+        cut.lights[K + 4 * k + j] = cut.light(tree, g, n.level + 1, MaxAvgTree::levelOffset(n.level + 1) + 4 * n.node + j);
+  }
   return cut;
 }
 
@@ -130,28 +139,27 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
     // The plane the point lies on: its cap is the point's horizon, which
     // the weights already hold.
     if (glm::dot(o.axis, normal) < -0.9999f) continue;
+    if (kept.size() == kMaxCaps) break;  // never: occluders keeps at most kMaxCaps
     LightCap c;
     if (!frontierCap(o.axis, o.sinHalfAngle, g, c)) continue;
     kept.push_back(c);
     // frontierCap's cos of the half-angle less the margin.
     const float s0 = o.sinHalfAngle, c0 = std::sqrt(1.0f - s0 * s0);
     const float cosA = c0 * cm + s0 * sm;
-    caps.chord.push_back(std::sqrt(std::max(2.0f - 2.0f * cosA, 0.0f)));
+    caps.chord[kept.size() - 1] = std::sqrt(std::max(2.0f - 2.0f * cosA, 0.0f));
   }
-  const size_t n = kept.size(), levels = size_t(g.order) + 1;
-  caps.count = int(n);
-  caps.x.resize(n);
-  caps.y.resize(n);
-  caps.z.resize(n);
-  caps.inside.resize(levels * n);
-  caps.outside.resize(levels * n);
-  for (size_t j = 0; j < n; ++j) {
+  const size_t levels = size_t(g.order) + 1;
+  caps.count = int(kept.size());
+  const float never = std::numeric_limits<float>::infinity();
+  caps.inside.assign(levels * kMaxCaps, never);
+  caps.outside.assign(levels * kMaxCaps, never);
+  for (size_t j = 0; j < kept.size(); ++j) {
     caps.x[j] = kept[j].axis.x;
     caps.y[j] = kept[j].axis.y;
     caps.z[j] = kept[j].axis.z;
     for (size_t l = 0; l < levels; ++l) {
-      caps.inside[l * n + j] = kept[j].cosInside[l];
-      caps.outside[l * n + j] = kept[j].cosOutside[l];
+      caps.inside[l * kMaxCaps + j] = kept[j].cosInside[l];
+      caps.outside[l * kMaxCaps + j] = kept[j].cosOutside[l];
     }
   }
 }
@@ -164,12 +172,12 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
 // covered share 1 - smoothstep between the discs touching from inside and
 // from outside; the smallest share under any cap (a ball on a plane
 // overlaps it), at least minPartial.
-float CutPoint::weight(int level, uint64_t at, bool withLobe, bool* uncertain) const {
-  const size_t l = size_t(level);
-  const float power = cut.omega[l] * tree.avgv[at];
+float CutPoint::weight(const CutLight& n, bool withLobe, bool* uncertain) const {
+  const size_t l = size_t(n.level);
+  const float power = n.power;
   if (!(power > 0.0f)) return 0.0f;
-  const glm::vec3& m = cut.moment[at];
-  const glm::vec3& centre = g.centers[at];
+  const glm::vec3& m = n.moment;
+  const glm::vec3& centre = n.centre;
   const float sinE = glm::dot(centre, normal), sinR = cut.discSin[l];
   float w = 0.0f;
   if (withLobe) {
@@ -190,37 +198,37 @@ float CutPoint::weight(int level, uint64_t at, bool withLobe, bool* uncertain) c
     d = std::max(d, kCutHorizonFloor * power * std::max(top, 0.0f));
     w = diffuse * d;
   }
-  const size_t n = size_t(caps.count);
-  if (!(w > 0.0f) || n == 0) return w;
-  // The tests of 64 caps at a time in a loop without branches, then the
-  // covered shares of those that cover the node in part.
-  const float* inside = caps.inside.data() + l * n;
-  const float* outside = caps.outside.data() + l * n;
+  if (!(w > 0.0f) || caps.count == 0) return w;
+  // Every slot's tests in one loop without branches, then the covered
+  // shares of the caps that cover the node in part.
+  const float* inside = caps.inside.data() + l * kMaxCaps;
+  const float* outside = caps.outside.data() + l * kMaxCaps;
   const float *x = caps.x.data(), *y = caps.y.data(), *z = caps.z.data();
-  float visible = 1.0f;
-  const float rn = cut.discChord[l];
-  for (size_t base = 0; base < n; base += 64) {
-    const size_t end = std::min(n, base + 64);
-    bool covered = false;
-    uint64_t partial = 0;
-    for (size_t j = base; j < end; ++j) {
-      const float d = (centre.x * x[j] + centre.y * y[j]) + centre.z * z[j];
-      covered |= d >= inside[j];
-      partial |= uint64_t(d > outside[j]) << (j - base);
-    }
-    if (covered) return 0.0f;
-    for (; partial != 0; partial &= partial - 1) {
-      const size_t j = base + size_t(std::countr_zero(partial));
-      const float d = (centre.x * x[j] + centre.y * y[j]) + centre.z * z[j];
-      const float chord = caps.chord[j];
-      const float small = std::min(rn, chord);
-      const float dist = std::sqrt(std::max(2.0f - 2.0f * d, 0.0f));
-      const float s = std::clamp((dist - std::abs(rn - chord)) / (2.0f * small), 0.0f, 1.0f);
-      const float ratio = small / rn;
-      const float share = (1.0f - s * s * (3.0f - 2.0f * s)) * (ratio * ratio);
-      visible = std::min(visible, 1.0f - share);
-    }
+  const float cx = centre.x, cy = centre.y, cz = centre.z;
+  int covered = 0, partial = 0;
+  for (size_t j = 0; j < kMaxCaps; ++j) {
+    const float d = (cx * x[j] + cy * y[j]) + cz * z[j];
+    covered |= d >= inside[j] ? 1 : 0;
+    partial |= d > outside[j] ? 1 : 0;
   }
+  if (covered) return 0.0f;
+  if (!partial) return w;
+  // Every slot's share in a second such loop, kept where the cap covers
+  // the node in part.
+  const float rn = cut.discChord[l];
+  const float* chord = caps.chord.data();
+  std::array<float, kMaxCaps> open;
+  for (size_t j = 0; j < kMaxCaps; ++j) {
+    const float d = (cx * x[j] + cy * y[j]) + cz * z[j];
+    const float small = std::min(rn, chord[j]);
+    const float dist = std::sqrt(std::max(2.0f - 2.0f * d, 0.0f));
+    const float s = std::min(std::max((dist - std::abs(rn - chord[j])) / (2.0f * small), 0.0f), 1.0f);
+    const float ratio = small / rn;
+    const float share = (1.0f - s * s * (3.0f - 2.0f * s)) * (ratio * ratio);
+    open[j] = d > outside[j] ? 1.0f - share : 1.0f;
+  }
+  float visible = 1.0f;
+  for (const float v : open) visible = std::min(visible, v);
   if (uncertain && visible < 1.0f) *uncertain = true;
   return w * std::max(visible, minPartial);
 }
@@ -231,22 +239,23 @@ void CutDensity::reset(const CutPoint& point, const Environment& env, const CutO
   productLevel_ = std::min(options.productLevel, point.cut.momentLevel);
   const EnvCut& cut = point.cut;
   const size_t K = cut.nodes.size();
+  const bool lobe = point.lobeOnly;
   cum_.resize(K + 1);
+  children_.resize(4 * K);
+  kept_.assign(K, 0);
   float total = 0.0f;
   glm::vec3 chromaSum(0.0f);
   for (size_t k = 0; k < K; ++k) {
     const CutNode& c = cut.nodes[k];
-    const uint64_t at = MaxAvgTree::levelOffset(c.level) + c.node;
     bool uncertain = false;
-    float w = point.weight(c.level, at, point.lobeOnly, &uncertain);
+    float w = point.weight(cut.lights[k], lobe, &uncertain);
     // Its four children's weights where the horizon or a cap cuts it: the
     // descent's first step draws by them, so any weight keeps the pdf.
     if (uncertain && c.level < cut.momentLevel) {
-      const uint64_t first = MaxAvgTree::levelOffset(c.level + 1) + 4 * c.node;
-      const bool lobe = point.lobeOnly;
-      const float children = ((point.weight(c.level + 1, first, lobe) + point.weight(c.level + 1, first + 1, lobe)) +
-                              point.weight(c.level + 1, first + 2, lobe)) +
-                             point.weight(c.level + 1, first + 3, lobe);
+      float* cw = &children_[4 * k];
+      for (size_t j = 0; j < 4; ++j) cw[j] = point.weight(cut.lights[K + 4 * k + j], lobe);
+      kept_[k] = 1;
+      const float children = ((cw[0] + cw[1]) + cw[2]) + cw[3];
       if (children > 0.0f) w = children;
     }
     cum_[k] = total;
@@ -268,11 +277,27 @@ uint32_t CutDensity::node(double x) const {
 
 double CutDensity::nodeProbability(uint32_t k) const { return double((cum_[k + 1] - cum_[k]) / total_); }
 
+namespace {
+// Children of no weight (under a cap, say) keep the environment's.
+void environmentWhereZero(const MaxAvgTree& tree, uint64_t first, float (&w)[4]) {
+  if (!(((w[0] + w[1]) + w[2]) + w[3] > 0.0f))
+    for (int j = 0; j < 4; ++j) w[j] = tree.avgv[first + uint64_t(j)];
+}
+}  // namespace
+
 void CutDensity::childWeights(int level, uint64_t parent, float (&w)[4]) const {
   const uint64_t first = MaxAvgTree::levelOffset(level) + 4 * parent;
   for (int j = 0; j < 4; ++j) w[j] = point_->weight(level, first + uint64_t(j), point_->lobeOnly);
-  if (!(((w[0] + w[1]) + w[2]) + w[3] > 0.0f))
-    for (int j = 0; j < 4; ++j) w[j] = env_->tree.avgv[first + uint64_t(j)];
+  environmentWhereZero(env_->tree, first, w);
+}
+
+void CutDensity::firstChildWeights(uint32_t k, float (&w)[4]) const {
+  const EnvCut& cut = point_->cut;
+  const size_t K = cut.nodes.size();
+  for (size_t j = 0; j < 4; ++j)
+    w[j] = kept_[k] ? children_[4 * k + j] : point_->weight(cut.lights[K + 4 * k + j], point_->lobeOnly);
+  const CutNode& c = cut.nodes[k];
+  environmentWhereZero(env_->tree, MaxAvgTree::levelOffset(c.level + 1) + 4 * c.node, w);
 }
 
 EnvSample CutDensity::sample(uint32_t k, glm::dvec2 u) const {
@@ -282,7 +307,10 @@ EnvSample CutDensity::sample(uint32_t k, glm::dvec2 u) const {
   const int below = std::max(c.level, productLevel_);
   for (int l = c.level + 1; l <= below; ++l) {
     float w[4], prob;
-    childWeights(l, node, w);
+    if (l == c.level + 1)
+      firstChildWeights(k, w);
+    else
+      childWeights(l, node, w);
     node = 4 * node + uint64_t(pickRescaled4(w, u.x, prob));
     p *= double(prob);
   }
@@ -299,7 +327,10 @@ float CutDensity::pdf(uint64_t pixel) const {
   const int below = std::max(c.level, productLevel_);
   for (int l = c.level + 1; l <= below && p > 0.0; ++l) {
     float w[4];
-    childWeights(l, pixel >> (2 * (env_->order - l + 1)), w);
+    if (l == c.level + 1)
+      firstChildWeights(k, w);
+    else
+      childWeights(l, pixel >> (2 * (env_->order - l + 1)), w);
     const int j = int((pixel >> (2 * (env_->order - l))) & 3);
     const float sum = ((w[0] + w[1]) + w[2]) + w[3];
     p = w[j] > 0.0f ? p * double(w[j] / sum) : 0.0;

@@ -81,8 +81,22 @@ struct CutNode {
   glm::vec3 chroma;  // its light's radiance over luminance, both summed over its leaves
 };
 
+// A node's light as the weights read it (HEALPix frame): its bounding
+// disc's centre, power (average luminance x solid angle), first moment and
+// level.
+struct CutLight {
+  glm::vec3 centre;
+  float power;
+  glm::vec3 moment;
+  int level;
+};
+
 struct EnvCut {
   std::vector<CutNode> nodes;    // along the nested index
+  // The nodes' lights, then each one's four children's (K + 4k + j; zero
+  // power below momentLevel): what the loop over the cut and the descent's
+  // first step read.
+  std::vector<CutLight> lights;
   int lookupLevel = 0;           // min(kCutMaxLevel, the map's order)
   std::vector<uint32_t> lookup;  // per node of lookupLevel: the cut node holding it
   int momentLevel = 0;           // min(kCutMomentLevel, the map's order)
@@ -93,6 +107,10 @@ struct EnvCut {
   std::array<float, 32> discSin{};    // cutDiscSin per level
   std::array<float, 32> discChord{};  // the chord radius of that disc
   std::array<float, 32> omega{};      // a node's solid angle per level
+  // Node `at` (the tree's layout) of `level` <= momentLevel.
+  CutLight light(const MaxAvgTree& tree, const HtGeometry& g, int level, uint64_t at) const {
+    return {g.centers[at], omega[size_t(level)] * tree.avgv[at], moment[at], level};
+  }
   uint32_t cutNodeOf(const Environment& env, uint64_t pixel) const {
     return lookup[pixel >> (2 * (env.order - lookupLevel))];
   }
@@ -129,11 +147,14 @@ struct MethodOptions;
 // ht-cut's options for a render's method options.
 CutOptions cutOptionsFor(const MethodOptions& options);
 
-// A point's caps, a column per quantity: axes, the chords of their radii,
-// and frontierCap's thresholds per level (entry level x count + cap).
+// A point's caps, a column per quantity, kMaxCaps wide so that their tests
+// run as one loop of fixed length: axes, the chords of their radii, and
+// frontierCap's thresholds per level (entry level x kMaxCaps + cap). The
+// slots past count hold thresholds no node reaches.
 struct CutCaps {
   int count = 0;
-  std::vector<float> x, y, z, chord, inside, outside;
+  std::array<float, kMaxCaps> x{}, y{}, z{}, chord{};
+  std::vector<float> inside, outside;
 };
 
 // What weighs the tree's nodes at one shading point (HEALPix frame).
@@ -143,7 +164,10 @@ struct CutPoint {
   // Node `at` (the tree's layout) of `level` <= cut.momentLevel; withLobe:
   // a lobe alone's, read at the light's centroid. `uncertain`, if given, is
   // set where the horizon or a cap cuts the node.
-  float weight(int level, uint64_t at, bool withLobe, bool* uncertain = nullptr) const;
+  float weight(int level, uint64_t at, bool withLobe, bool* uncertain = nullptr) const {
+    return weight(cut.light(tree, g, level, at), withLobe, uncertain);
+  }
+  float weight(const CutLight& n, bool withLobe, bool* uncertain = nullptr) const;
 
   const EnvCut& cut;
   const HtGeometry& g;
@@ -178,10 +202,15 @@ class CutDensity {
 
  private:
   void childWeights(int level, uint64_t parent, float (&w)[4]) const;
+  // childWeights of cut node k's children, kept from reset where it
+  // weighed them.
+  void firstChildWeights(uint32_t k, float (&w)[4]) const;
   const CutPoint* point_ = nullptr;
   const Environment* env_ = nullptr;
   int productLevel_ = 0;
   std::vector<float> cum_;  // cum_[k]: the weights before node k; node k's is cum_[k + 1] - cum_[k]
+  std::vector<float> children_;  // 4k + j: cut node k's children's weights where kept
+  std::vector<uint8_t> kept_;    // per cut node: whether children_ holds its children's
   float total_ = 0.0f;
   glm::vec3 colourMean_{0.0f};
 };
