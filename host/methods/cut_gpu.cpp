@@ -24,26 +24,24 @@ class CutGpuState : public GpuMethodState {
     const EnvCut& cut = *cutPtr;
     if (cut_ != cutPtr) {
       // The records the loop over the cut reads (GpuScene::cutRecord): its
-      // K nodes, then each one's four children, as CutPoint::weight reads
-      // them from the tree.
-      const MaxAvgTree& tree = c.hostScene.environment.tree;
+      // K nodes, then each one's four children, CutPoint's lights with their
+      // levels' constants.
       const size_t K = cut.nodes.size();
       std::vector<glm::vec4> records(4 * 5 * K, glm::vec4(0.0f));
-      auto record = [&](size_t r, int level, uint64_t at, const glm::vec3& chroma) {
-        const size_t l = size_t(level);
-        const glm::vec3 centre = g.centers[at], moment = cut.moment[at];
-        const float power = cut.omega[l] * tree.avgv[at];
-        records[4 * r + 0] = glm::vec4(centre, cut.discSin[l]);
-        records[4 * r + 1] = glm::vec4(moment, power);
+      auto record = [&](size_t r, uint64_t at, const glm::vec3& chroma) {
+        const CutLight& n = cut.lights[r];
+        const size_t l = size_t(n.level);
+        records[4 * r + 0] = glm::vec4(n.centre, cut.discSin[l]);
+        records[4 * r + 1] = glm::vec4(n.moment, n.power);
         records[4 * r + 2] = glm::vec4(chroma, g.levelCosRadius[l]);
-        records[4 * r + 3] = glm::vec4(g.levelSinRadius[l], cut.discChord[l], float(level), float(at));
+        records[4 * r + 3] = glm::vec4(g.levelSinRadius[l], cut.discChord[l], float(n.level), float(at));
       };
       for (size_t k = 0; k < K; ++k) {
         const CutNode& n = cut.nodes[k];
-        record(k, n.level, MaxAvgTree::levelOffset(n.level) + n.node, n.chroma);
+        record(k, MaxAvgTree::levelOffset(n.level) + n.node, n.chroma);
         if (n.level < cut.momentLevel)
           for (uint64_t j = 0; j < 4; ++j)
-            record(K + 4 * k + j, n.level + 1, MaxAvgTree::levelOffset(n.level + 1) + 4 * n.node + j, glm::vec3(0.0f));
+            record(K + 4 * k + j, MaxAvgTree::levelOffset(n.level + 1) + 4 * n.node + j, glm::vec3(0.0f));
       }
       moment_ = uploadArray(c.ctx, cut.moment);
       record_ = uploadArray(c.ctx, records);
