@@ -1,8 +1,8 @@
 #include "ht_cut.h"
 
 #include <algorithm>
-#include <limits>
 #include <cmath>
+#include <limits>
 #include <queue>
 
 #include <glm/geometric.hpp>

@@ -132,6 +132,45 @@ TEST(Bvh, DegenerateSetsEqualTheLinearScan) {
   for (auto* set : {&same, &line, &grid}) expectSameHits(withSpheres(*set), rng, 20000);
 }
 
+// The slab test as std::fmin / std::fmax give it, NaN of 0 x inf included.
+bool slabReference(const BvhNode& node, const glm::vec3& o, const glm::vec3& inv, float tMax, float& t0) {
+  float enter = 0.0f, exit = tMax;
+  for (int a = 0; a < 3; ++a) {
+    const float ta = (node.lo[a] - o[a]) * inv[a], tb = (node.hi[a] - o[a]) * inv[a];
+    enter = std::fmax(enter, std::fmin(ta, tb));
+    exit = std::fmin(exit, std::fmax(ta, tb));
+  }
+  t0 = enter;
+  return enter <= exit + 1e-5f * (std::fabs(enter) + std::fabs(exit));
+}
+
+// rayBox's inline minimum and maximum answer as fmin and fmax do, on rays
+// along the axes that start on a box's planes (0 x inf) and on any others.
+TEST(Bvh, SlabTestEqualsFminFmax) {
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> pick(-2, 2);
+  std::normal_distribution<float> g;
+  const BvhNode box{glm::vec3(-1.0f, -1.0f, -1.0f), glm::vec3(1.0f, 1.0f, 1.0f), 0, 1};
+  int entered = 0, nans = 0;
+  for (int k = 0; k < 20000; ++k) {
+    // Coordinates on the box's planes, its middle and outside it.
+    glm::vec3 o(float(pick(rng)), float(pick(rng)), float(pick(rng)));
+    glm::vec3 d = k % 2 ? glm::vec3(float(pick(rng)), float(pick(rng)), float(pick(rng))) : glm::vec3(g(rng), g(rng), g(rng));
+    if (d == glm::vec3(0.0f)) d.z = 1.0f;
+    const glm::vec3 inv = 1.0f / d;
+    for (int a = 0; a < 3; ++a) nans += std::isnan((box.lo[a] - o[a]) * inv[a]) ? 1 : 0;
+    for (const float tMax : {INFINITY, 10.0f, 0.5f}) {
+      float t0 = 0.0f, r0 = 0.0f;
+      const bool hit = rayBox(box, o, inv, tMax, t0), ref = slabReference(box, o, inv, tMax, r0);
+      ASSERT_EQ(hit, ref) << "ray " << k << " tMax " << tMax;
+      ASSERT_EQ(t0, r0) << "ray " << k << " tMax " << tMax;
+      entered += hit ? 1 : 0;
+    }
+  }
+  EXPECT_GT(nans, 1000);  // the 0 x inf case is exercised
+  EXPECT_GT(entered, 1000);
+}
+
 // Centres too far apart or too close together for a float bin scale: the
 // build splits at the median instead (and writes nothing out of bounds).
 TEST(Bvh, ExtremeCentresBuild) {
