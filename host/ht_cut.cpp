@@ -139,7 +139,9 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
     // The plane the point lies on: its cap is the point's horizon, which
     // the weights already hold.
     if (glm::dot(o.axis, normal) < -0.9999f) continue;
-    if (kept.size() == kMaxCaps) break;  // never: occluders keeps at most kMaxCaps
+    // Beyond kMaxCaps only with more planes than that (the CPU renders
+    // them): a cap left out only leaves density where shadow rays return 0.
+    if (kept.size() == kMaxCaps) break;
     LightCap c;
     if (!frontierCap(o.axis, o.sinHalfAngle, g, c)) continue;
     kept.push_back(c);
@@ -294,8 +296,10 @@ void CutDensity::childWeights(int level, uint64_t parent, float (&w)[4]) const {
 void CutDensity::firstChildWeights(uint32_t k, float (&w)[4]) const {
   const EnvCut& cut = point_->cut;
   const size_t K = cut.nodes.size();
-  for (size_t j = 0; j < 4; ++j)
-    w[j] = kept_[k] ? children_[4 * k + j] : point_->weight(cut.lights[K + 4 * k + j], point_->lobeOnly);
+  if (kept_[k])
+    std::copy_n(&children_[4 * k], 4, w);
+  else
+    for (size_t j = 0; j < 4; ++j) w[j] = point_->weight(cut.lights[K + 4 * k + j], point_->lobeOnly);
   const CutNode& c = cut.nodes[k];
   environmentWhereZero(env_->tree, MaxAvgTree::levelOffset(c.level + 1) + 4 * c.node, w);
 }
