@@ -132,6 +132,7 @@ TEST(Bvh, DegenerateSetsEqualTheLinearScan) {
   for (auto* set : {&same, &line, &grid}) expectSameHits(withSpheres(*set), rng, 20000);
 }
 
+namespace {
 // The slab test as std::fmin / std::fmax give it, NaN of 0 x inf included.
 bool slabReference(const BvhNode& node, const glm::vec3& o, const glm::vec3& inv, float tMax, float& t0) {
   float enter = 0.0f, exit = tMax;
@@ -143,6 +144,7 @@ bool slabReference(const BvhNode& node, const glm::vec3& o, const glm::vec3& inv
   t0 = enter;
   return enter <= exit + 1e-5f * (std::fabs(enter) + std::fabs(exit));
 }
+}  // namespace
 
 // rayBox's inline minimum and maximum answer as fmin and fmax do, on rays
 // along the axes that start on a box's planes (0 x inf) and on any others.
