@@ -123,14 +123,14 @@ Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometry, int 
   return c;
 }
 
-size_t capSphereCount(const Scene& scene) { return kMaxCaps - std::min(kMaxCaps, scene.planes.size()); }
+size_t capSphereCount(const Scene& scene, size_t caps) { return caps - std::min(caps, scene.planes.size()); }
 
-std::vector<Occluder> occluders(const Scene& scene, const ShadingPoint& sp) {
+std::vector<Occluder> occluders(const Scene& scene, const ShadingPoint& sp, size_t caps) {
   const Environment& env = scene.environment;
   std::vector<Occluder> out;
-  out.reserve(std::max(kMaxCaps, scene.planes.size()));
+  out.reserve(std::max(caps, scene.planes.size()));
   const glm::vec3 origin = offsetRayOrigin(sp.position, sp.normal);
-  for (const uint32_t i : capSpheres(scene, origin, sp.normal, capSphereCount(scene))) {
+  for (const uint32_t i : capSpheres(scene, origin, sp.normal, capSphereCount(scene, caps))) {
     const Sphere& s = scene.spheres[i];
     const glm::vec3 d = s.center - origin;
     const float dist = glm::length(d);

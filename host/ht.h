@@ -120,7 +120,8 @@ inline Cap makeCap(const glm::vec3& axis, float angle, const HtGeometry& geometr
 // (capSpheres in scene.h). A sphere left out only leaves density where its
 // shadow rays return 0, so the estimates stay unbiased.
 constexpr size_t kMaxCaps = 16;
-size_t capSphereCount(const Scene& scene);
+// The spheres' share of `caps` slots: what the planes leave.
+size_t capSphereCount(const Scene& scene, size_t caps = kMaxCaps);
 // Every plane and the spheres of capSpheres as seen from the shading point's
 // shadow-ray origin (offsetRayOrigin): a hit point rounded to just below its
 // own plane would otherwise see the sky as blocked.
@@ -128,7 +129,7 @@ struct Occluder {
   glm::vec3 axis;      // HEALPix frame
   float sinHalfAngle;  // of the cap it blocks; 1 for a plane's far side
 };
-std::vector<Occluder> occluders(const Scene& scene, const ShadingPoint& sp);
+std::vector<Occluder> occluders(const Scene& scene, const ShadingPoint& sp, size_t caps = kMaxCaps);
 // Caps shrink by this (radians) so that "inside" always means blocked.
 constexpr float kCapMargin = 1e-3f;
 // The caps of every occluder.

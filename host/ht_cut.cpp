@@ -135,13 +135,13 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
   const float cm = std::cos(kCapMargin), sm = std::sin(kCapMargin);
   thread_local std::vector<LightCap> kept;
   kept.clear();
-  for (const Occluder& o : occluders(scene, sp)) {
+  for (const Occluder& o : occluders(scene, sp, kCutMaxCaps)) {
     // The plane the point lies on: its cap is the point's horizon, which
     // the weights already hold.
     if (glm::dot(o.axis, normal) < -0.9999f) continue;
-    // Beyond kMaxCaps only with more planes than that (the CPU renders
-    // them): a cap left out only leaves density where shadow rays return 0.
-    if (kept.size() == kMaxCaps) break;
+    // Beyond kCutMaxCaps only with more planes than that: a cap left out
+    // only leaves density where shadow rays return 0.
+    if (kept.size() == kCutMaxCaps) break;
     LightCap c;
     if (!frontierCap(o.axis, o.sinHalfAngle, g, c)) continue;
     kept.push_back(c);
@@ -153,15 +153,15 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
   const size_t levels = size_t(g.order) + 1;
   caps.count = int(kept.size());
   const float never = std::numeric_limits<float>::infinity();
-  caps.inside.assign(levels * kMaxCaps, never);
-  caps.outside.assign(levels * kMaxCaps, never);
+  caps.inside.assign(levels * kCutMaxCaps, never);
+  caps.outside.assign(levels * kCutMaxCaps, never);
   for (size_t j = 0; j < kept.size(); ++j) {
     caps.x[j] = kept[j].axis.x;
     caps.y[j] = kept[j].axis.y;
     caps.z[j] = kept[j].axis.z;
     for (size_t l = 0; l < levels; ++l) {
-      caps.inside[l * kMaxCaps + j] = kept[j].cosInside[l];
-      caps.outside[l * kMaxCaps + j] = kept[j].cosOutside[l];
+      caps.inside[l * kCutMaxCaps + j] = kept[j].cosInside[l];
+      caps.outside[l * kCutMaxCaps + j] = kept[j].cosOutside[l];
     }
   }
 }
@@ -203,12 +203,12 @@ float CutPoint::weight(const CutLight& n, bool withLobe, bool* uncertain) const 
   if (!(w > 0.0f) || caps.count == 0) return w;
   // Every slot's tests in one loop without branches, then the covered
   // shares of the caps that cover the node in part.
-  const float* inside = caps.inside.data() + l * kMaxCaps;
-  const float* outside = caps.outside.data() + l * kMaxCaps;
+  const float* inside = caps.inside.data() + l * kCutMaxCaps;
+  const float* outside = caps.outside.data() + l * kCutMaxCaps;
   const float *x = caps.x.data(), *y = caps.y.data(), *z = caps.z.data();
   const float cx = centre.x, cy = centre.y, cz = centre.z;
   int covered = 0, partial = 0;
-  for (size_t j = 0; j < kMaxCaps; ++j) {
+  for (size_t j = 0; j < kCutMaxCaps; ++j) {
     const float d = (cx * x[j] + cy * y[j]) + cz * z[j];
     covered |= d >= inside[j] ? 1 : 0;
     partial |= d > outside[j] ? 1 : 0;
@@ -219,8 +219,8 @@ float CutPoint::weight(const CutLight& n, bool withLobe, bool* uncertain) const 
   // the node in part.
   const float rn = cut.discChord[l];
   const float* chord = caps.chord.data();
-  std::array<float, kMaxCaps> open;
-  for (size_t j = 0; j < kMaxCaps; ++j) {
+  std::array<float, kCutMaxCaps> open;
+  for (size_t j = 0; j < kCutMaxCaps; ++j) {
     const float d = (cx * x[j] + cy * y[j]) + cz * z[j];
     const float small = std::min(rn, chord[j]);
     const float dist = std::sqrt(std::max(2.0f - 2.0f * d, 0.0f));

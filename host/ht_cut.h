@@ -147,13 +147,18 @@ struct MethodOptions;
 // ht-cut's options for a render's method options.
 CutOptions cutOptionsFor(const MethodOptions& options);
 
-// A point's caps, a column per quantity, kMaxCaps wide so that their tests
-// run as one loop of fixed length: axes, the chords of their radii, and
-// frontierCap's thresholds per level (entry level x kMaxCaps + cap). The
-// slots past count hold thresholds no node reaches.
+// The caps a point keeps at most: every plane but the one it lies on, then
+// the largest spheres (occluders with this many slots).
+constexpr size_t kCutMaxCaps = HT_CUT_MAX_CAPS;
+static_assert(kCutMaxCaps <= kMaxCaps);
+
+// A point's caps, a column per quantity, kCutMaxCaps wide so that their
+// tests run as one loop of fixed length: axes, the chords of their radii,
+// and frontierCap's thresholds per level (entry level x kCutMaxCaps + cap).
+// The slots past count hold thresholds no node reaches.
 struct CutCaps {
   int count = 0;
-  std::array<float, kMaxCaps> x{}, y{}, z{}, chord{};
+  std::array<float, kCutMaxCaps> x{}, y{}, z{}, chord{};
   std::vector<float> inside, outside;
 };
 

@@ -66,8 +66,10 @@ void capConsider(uint i, vec3 origin, vec3 normal, uint k, inout uint count) {
   count = min(count + 1u, k);
 }
 
-uint capSpheres(vec3 origin, vec3 normal) {
-  const uint k = HT_MAX_CAPS - min(uint(HT_MAX_CAPS), scene.planeCount);
+// capSpheres with `caps` slots (at most HT_MAX_CAPS): the planes' first,
+// the spheres' what they leave (capSphereCount).
+uint capSpheresIn(vec3 origin, vec3 normal, uint caps) {
+  const uint k = caps - min(caps, scene.planeCount);
   if (scene.sphereCount <= k) {
     for (uint i = 0u; i < scene.sphereCount; ++i) sCapSphere[capAt(i)] = i;
     return scene.sphereCount;
@@ -112,17 +114,19 @@ uint capSpheres(vec3 origin, vec3 normal) {
   return count;
 }
 
+uint capSpheres(vec3 origin, vec3 normal) { return capSpheresIn(origin, normal, uint(HT_MAX_CAPS)); }
+
 // occluders() (host/ht.cpp), seen from the shadow rays' origin: slot j
 // below capSpheres' count the j-th chosen sphere's cap, then one slot per
 // plane (its far side); each with its axis in the HEALPix frame and the
 // sine of its half-angle. Returns the slots set (a sphere at the origin has
-// none).
+// none). `caps`: as capSpheresIn's.
 vec3 gOccluderAxis[HT_MAX_CAPS];
 float gOccluderSine[HT_MAX_CAPS];
-uint occluderSlots(vec3 position, vec3 normal) {
+uint occluderSlots(vec3 position, vec3 normal, uint caps) {
   uint slots = 0u;
   precise vec3 origin = offsetRayOrigin(position, normal);
-  const uint capped = capSpheres(origin, normal);
+  const uint capped = capSpheresIn(origin, normal, caps);
   for (uint j = 0u; j < capped; ++j) {
     GpuSphere sp = spheres[capSphere(j)];
     precise vec3 d = sp.center - origin;

@@ -121,6 +121,9 @@
 #define HT_CUT_MAX_NODES 512
 #define HT_CUT_HORIZON_FLOOR 0.0625  // kCutHorizonFloor (exact in float)
 #define HT_CUT_MIN_SHARE 0.125       // kCutMinShare (exact in float)
+// ht-cut's caps per point at most (of HT_MAX_CAPS): the planes, then the
+// largest spheres.
+#define HT_CUT_MAX_CAPS 8
 #define HT_CUT_VISIBILITY 1u
 #define HT_CUT_COLOUR_CONTROL 2u
 #define HT_FRONTIER_LANES 8  // ht-frontier's scratch: blocks of 8 pixels of a tile row, element by element

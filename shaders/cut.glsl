@@ -55,28 +55,32 @@ struct CutPoint {
 CutPoint gCut;
 // Its caps, one slot per sphere and plane: axis, cos and sin of the
 // half-angle less the margin, the radius's chord; gCutCaps: the slots set.
-vec3 gCutCapAxis[HT_MAX_CAPS];
-float gCutCapSin[HT_MAX_CAPS];
-float gCutCapCos[HT_MAX_CAPS];
-float gCutCapChord[HT_MAX_CAPS];
+vec3 gCutCapAxis[HT_CUT_MAX_CAPS];
+float gCutCapSin[HT_CUT_MAX_CAPS];
+float gCutCapCos[HT_CUT_MAX_CAPS];
+float gCutCapChord[HT_CUT_MAX_CAPS];
 uint gCutCaps;
+// The slots the caps' loops visit: the scene's, at most the cut's.
+const uint kCutCapSlots = kCapSlots < uint(HT_CUT_MAX_CAPS) ? kCapSlots : uint(HT_CUT_MAX_CAPS);
 // The cut's prefix sums at the point (cum[k]: the weights before node k).
 float gCutCum[HT_CUT_MAX_NODES + 1];
 
-void cutAddCap(uint k, vec3 axis, float s0) {
+// Into slot k; false where the cap is left out.
+bool cutAddCap(uint k, vec3 axis, float s0) {
   // The plane the point lies on: its cap is the point's horizon, which the
   // weights already hold.
-  if (dot3(axis, gCut.normal) < -0.9999) return;
+  if (dot3(axis, gCut.normal) < -0.9999) return false;
   precise float c0 = sqrt(1.0 - s0 * s0);
   precise float sinA = s0 * scene.cutCapCosMargin - c0 * scene.cutCapSinMargin;
   precise float cosA = c0 * scene.cutCapCosMargin + s0 * scene.cutCapSinMargin;
-  if (!(sinA > 0.0)) return;
+  if (!(sinA > 0.0)) return false;
   precise float chord = sqrt(max(2.0 - 2.0 * cosA, 0.0));
   gCutCapAxis[k] = axis;
   gCutCapSin[k] = sinA;
   gCutCapCos[k] = cosA;
   gCutCapChord[k] = chord;
   gCutCaps |= 1u << k;
+  return true;
 }
 
 // CutPoint's constructor: the frame, the lobes and the caps.
@@ -99,9 +103,12 @@ void cutInit(Shading sh, vec3 position, vec3 normal) {
   gCut.lobe.specularProbability = luminance(m.specular) > 0.0 ? 1.0 : 0.0;  // specularLobeProbability
   gCutCaps = 0u;
   if ((scene.cutFlags & HT_CUT_VISIBILITY) == 0u) return;
-  const uint slots = occluderSlots(position, normal);
+  const uint slots = occluderSlots(position, normal, uint(HT_CUT_MAX_CAPS));
+  uint kept = 0u;
   [[unroll]] for (uint k = 0u; k < kCapSlots; ++k)
-    if (((slots >> k) & 1u) != 0u) cutAddCap(k, gOccluderAxis[k], gOccluderSine[k]);
+    if (((slots >> k) & 1u) != 0u && kept < uint(HT_CUT_MAX_CAPS) &&
+        cutAddCap(kept, gOccluderAxis[k], gOccluderSine[k]))
+      ++kept;
 }
 
 // cutClippedCosine.
@@ -153,10 +160,10 @@ precise float cutWeightOf(CutNodeData n, bool withLobe, inout bool uncertain) {
   // shares' code for every node).
   float rn = n.chord;
   float cR = n.cosRb, sR = n.sinRb;
-  float dots[HT_MAX_CAPS];
+  float dots[HT_CUT_MAX_CAPS];
   uint partial = 0u;
   bool inside = false;
-  [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
+  [[unroll]] for (uint k = 0u; k < kCutCapSlots; ++k) {
     if (((gCutCaps >> k) & 1u) == 0u) continue;
     precise float d = dot3(centre, gCutCapAxis[k]);
     precise float innerTest = gCutCapSin[k] * cR - gCutCapCos[k] * sR;
@@ -169,7 +176,7 @@ precise float cutWeightOf(CutNodeData n, bool withLobe, inout bool uncertain) {
   if (inside) return 0.0;
   precise float visible = 1.0;
   if (subgroupAny(partial != 0u)) {
-    [[unroll]] for (uint k = 0u; k < kCapSlots; ++k) {
+    [[unroll]] for (uint k = 0u; k < kCutCapSlots; ++k) {
       if (((partial >> k) & 1u) == 0u) continue;
       float d = dots[k];
       float chord = gCutCapChord[k];

@@ -216,7 +216,7 @@ TEST(Bvh, CapSpheresAreTheBruteForceRanking) {
       const glm::vec3 origin = p % 4 == 0 && count > 0 ? scene.spheres[size_t(p) % count].center + glm::vec3(0.01f)
                                                        : glm::vec3(u(rng), u(rng), u(rng));
       const glm::vec3 normal = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
-      for (size_t k : {size_t(0), size_t(1), size_t(5), size_t(15)}) {
+      for (size_t k : {size_t(0), size_t(1), size_t(5), size_t(7), size_t(15)}) {
         std::vector<uint32_t> expected;
         if (count <= k) {
           for (uint32_t i = 0; i < count; ++i) expected.push_back(i);

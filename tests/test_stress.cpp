@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "estimator_harness.h"
+#include "ht_cut.h"
 #include "render.h"
 
 using namespace ht;
@@ -55,15 +56,15 @@ TEST(Stress, EveryMethodGivesFiniteNonNegativePixels) {
   }
 }
 
-// Two shading points of a scene (at Nside `nside`), from pixels that hit
+// `count` shading points of a scene (at Nside `nside`), from pixels that hit
 // something, each with the hit's material first (the harness shades
 // material 0).
-std::vector<ShadingSetup> shadingPoints(const std::string& path, int nside) {
+std::vector<ShadingSetup> shadingPoints(const std::string& path, int nside, size_t count = 2) {
   Scene scene = loadSmall(path, nside);
   std::vector<ShadingSetup> points;
   for (float fy : {0.45f, 0.75f, 0.6f, 0.9f}) {
     for (float fx : {0.3f, 0.7f, 0.5f}) {
-      if (points.size() == 2) break;
+      if (points.size() == count) break;
       Ray ray = cameraRay(scene.camera, 64, 32, fx * 64, fy * 32);
       Hit hit;
       if (!intersectScene(scene, ray, 0.0f, INFINITY, hit)) continue;
@@ -79,7 +80,7 @@ std::vector<ShadingSetup> shadingPoints(const std::string& path, int nside) {
       points.push_back(std::move(s));
     }
   }
-  EXPECT_EQ(points.size(), 2u) << path;
+  EXPECT_EQ(points.size(), count) << path;
   return points;
 }
 
@@ -124,23 +125,40 @@ TEST(StressSlow, EveryUnbiasedMethodAgreesWithBruteForce) {
 }
 
 // On the sphere field (1024 spheres, one plane) a shading point keeps the
-// caps of its 15 largest spheres and the plane's, and the methods whose
-// density has caps stay unbiased: a sphere left out only leaves density
-// where its shadow rays return 0.
+// caps of its 15 largest spheres and the plane's, ht-cut those of its 7
+// largest and the plane's unless the point lies on it, and the methods
+// whose density has caps stay unbiased: a sphere left out only leaves
+// density where its shadow rays return 0.
 TEST(Stress, SphereFieldKeepsTheLargestCapsUnbiased) {
   const std::vector<ShadingSetup> points =
-      shadingPoints(std::string(HT_TEST_DATA) + "/scenes/stress/sphere-field.json", 32);
+      shadingPoints(std::string(HT_TEST_DATA) + "/scenes/stress/sphere-field.json", 32, 4);
   ASSERT_EQ(points[0].scene.spheres.size(), 1024u);
-  const double zCrit = normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / (2.0 * points.size())));
+  const std::vector<Method> methods = {Method::HtVis, Method::HtFrontier, Method::HtCut};
+  const double zCrit =
+      normalQuantileTwoSided(1.0 - std::pow(1.0 - 0.01, 1.0 / double(methods.size() * points.size())));
+  const MethodTables cutTables = prepareTables(points[0].scene, Method::HtCut);
+  int onPlane = 0;
   for (const ShadingSetup& p : points) {
     EXPECT_EQ(occluders(p.scene, p.sp).size(), kMaxCaps) << p.name;
+    ASSERT_EQ(occluders(p.scene, p.sp, kCutMaxCaps).size(), kCutMaxCaps) << p.name;
+    ShadingPoint sp = p.sp;
+    sp.material = &p.scene.materials[0];
+    EstimateCounters counters;
+    const Shading sh(p.scene, sp, counters);
+    const CutPoint cut(p.scene, sp, sh, CutOptions{}, cutTables.own<EnvCut>(), cutTables.geometry());
+    const Plane& ground = p.scene.planes[0];
+    const bool flat = std::abs(glm::dot(p.sp.position - ground.point, ground.normal)) < 1e-3f;
+    onPlane += flat;
+    EXPECT_EQ(size_t(cut.caps.count), kCutMaxCaps - (flat ? 1 : 0)) << p.name;
     const double ref = bruteForceIntegral(p, 12).g;
     const double refError = std::abs(ref - bruteForceIntegral(p, 6).g);
-    for (Method m : {Method::HtVis, Method::HtFrontier}) {
+    for (Method m : methods) {
       const MeanAndError e = repeatedEstimates(p, m, 2000, 8, 77, {});
       const double se = std::sqrt(e.stdError.g * e.stdError.g + refError * refError);
       EXPECT_LT(std::abs(e.mean.g - ref) / se, zCrit)
           << p.name << " / " << methodName(m) << ": mean " << e.mean.g << " reference " << ref;
     }
   }
+  EXPECT_GT(onPlane, 0);
+  EXPECT_LT(onPlane, int(points.size()));
 }
