@@ -66,6 +66,8 @@ sc = json.loads((tmp / "scaling/scaling.json").read_text())["results"]
 check(len(sc) == 4 and all(r["seconds"] >= 0 and r["environment_trees"] >= 0 for r in sc), "scaling rows")
 check([(r["sweep"], r["method"], r["x"]) for r in sc if r["sweep"] == "spheres"] ==
       [("spheres", "mis (cpu)", 1), ("spheres", "mis (cpu)", 20)], "sphere sweep rows")
+check(all(len(r["seconds_runs"]) == (3 if r["sweep"] == "spheres" else 1) for r in sc),
+      "three renders per sphere sweep point, one elsewhere")
 md = (tmp / "report/README.md").read_text()
 check("| spheres | mis (cpu) |" in md, "sphere sweep table")
 for s in ("## scene", "slide 52", "Stress scenes", "## Scaling", "ht-vis", "Efficiency against `mis` at 4 spp",

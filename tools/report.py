@@ -547,7 +547,8 @@ def scaling_section(data, outdir):
           f"spp and Nside sweeps at {data['width']}x{data['height']}, the Nside and size sweeps at "
           f"{data['sweep_spp']} spp. Render time is the render stage alone (wall); setup is reported apart. The "
           f"sphere sweep renders a field of N spheres on a plane (`tools/sphere_field.py`) on each device named "
-          f"after its method (gpu: the Vulkan path on the machine's device).", ""]
+          f"after its method (gpu: the Vulkan path on the machine's device), median of "
+          f"{data.get('sphere_runs', data['runs'])} run(s).", ""]
     sweeps = [s for s in ("spp", "nside", "size", "spheres") if any(r["sweep"] == s for r in rows)]
     if sweeps:
         fig, ax = plt.subplots(1, len(sweeps), figsize=(5.2 * len(sweeps), 4.0), squeeze=False)

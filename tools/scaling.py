@@ -97,6 +97,8 @@ def main():
     p.add_argument("--sphere-methods", default="mis,ht-vis,ht-frontier,ht-cut")
     p.add_argument("--sphere-devices", default="cpu,gpu")
     p.add_argument("--sphere-size", default="128x64", help="image size of the sphere-count sweep")
+    p.add_argument("--sphere-runs", type=int, default=3,
+                   help="renders per point of the sphere-count sweep, whose renders are short")
     p.add_argument("--sweeps", default="spp,nside,size,tree,spheres")
     p.add_argument("--runs", type=int, default=1)
     p.add_argument("--device", default="cpu")
@@ -151,9 +153,10 @@ def main():
                 for device in [d for d in args.sphere_devices.split(",") if d]:
                     for m in [m for m in args.sphere_methods.split(",") if m]:
                         rows.append(point(args, "spheres", sc, m, n, args.sweep_spp, w, h, tmp, device=device,
-                                          label=f"{m} ({device})"))
+                                          label=f"{m} ({device})", runs=max(args.runs, args.sphere_runs)))
 
-    result = {"machine": machine(), "device": args.device, "runs": args.runs, "scene": Path(args.scene).name,
+    result = {"machine": machine(), "device": args.device, "runs": args.runs,
+              "sphere_runs": max(args.runs, args.sphere_runs), "scene": Path(args.scene).name,
               "width": args.width, "height": args.height, "sweep_spp": args.sweep_spp, "results": rows}
     write_atomic(outdir / "scaling.json", json.dumps(result, indent=2))
     cols = ["sweep", "method", "x", "map", "spp", "width", "height", "nside", "seconds", "environment",
