@@ -135,13 +135,14 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
   const float cm = std::cos(kCapMargin), sm = std::sin(kCapMargin);
   thread_local std::vector<LightCap> kept;
   kept.clear();
-  for (const Occluder& o : occluders(scene, sp, kCutMaxCaps)) {
+  // The first kCutMaxCaps occluders (more only with more planes than that):
+  // a cap left out only leaves density where shadow rays return 0.
+  const std::vector<Occluder> blockers = occluders(scene, sp, kCutMaxCaps);
+  for (size_t i = 0; i < std::min(blockers.size(), kCutMaxCaps); ++i) {
+    const Occluder& o = blockers[i];
     // The plane the point lies on: its cap is the point's horizon, which
     // the weights already hold.
     if (glm::dot(o.axis, normal) < -0.9999f) continue;
-    // Beyond kCutMaxCaps only with more planes than that: a cap left out
-    // only leaves density where shadow rays return 0.
-    if (kept.size() == kCutMaxCaps) break;
     LightCap c;
     if (!frontierCap(o.axis, o.sinHalfAngle, g, c)) continue;
     kept.push_back(c);

@@ -53,8 +53,9 @@ struct CutPoint {
   GpuMaterial lobe;
 };
 CutPoint gCut;
-// Its caps, one slot per sphere and plane: axis, cos and sin of the
-// half-angle less the margin, the radius's chord; gCutCaps: the slots set.
+// Its caps, from occluderSlots' first HT_CUT_MAX_CAPS slots: axis, cos and
+// sin of the half-angle less the margin, the radius's chord; gCutCaps: the
+// slots set.
 vec3 gCutCapAxis[HT_CUT_MAX_CAPS];
 float gCutCapSin[HT_CUT_MAX_CAPS];
 float gCutCapCos[HT_CUT_MAX_CAPS];
@@ -65,22 +66,20 @@ const uint kCutCapSlots = kCapSlots < uint(HT_CUT_MAX_CAPS) ? kCapSlots : uint(H
 // The cut's prefix sums at the point (cum[k]: the weights before node k).
 float gCutCum[HT_CUT_MAX_NODES + 1];
 
-// Into slot k; false where the cap is left out.
-bool cutAddCap(uint k, vec3 axis, float s0) {
+void cutAddCap(uint k, vec3 axis, float s0) {
   // The plane the point lies on: its cap is the point's horizon, which the
   // weights already hold.
-  if (dot3(axis, gCut.normal) < -0.9999) return false;
+  if (dot3(axis, gCut.normal) < -0.9999) return;
   precise float c0 = sqrt(1.0 - s0 * s0);
   precise float sinA = s0 * scene.cutCapCosMargin - c0 * scene.cutCapSinMargin;
   precise float cosA = c0 * scene.cutCapCosMargin + s0 * scene.cutCapSinMargin;
-  if (!(sinA > 0.0)) return false;
+  if (!(sinA > 0.0)) return;
   precise float chord = sqrt(max(2.0 - 2.0 * cosA, 0.0));
   gCutCapAxis[k] = axis;
   gCutCapSin[k] = sinA;
   gCutCapCos[k] = cosA;
   gCutCapChord[k] = chord;
   gCutCaps |= 1u << k;
-  return true;
 }
 
 // CutPoint's constructor: the frame, the lobes and the caps.
@@ -103,12 +102,11 @@ void cutInit(Shading sh, vec3 position, vec3 normal) {
   gCut.lobe.specularProbability = luminance(m.specular) > 0.0 ? 1.0 : 0.0;  // specularLobeProbability
   gCutCaps = 0u;
   if ((scene.cutFlags & HT_CUT_VISIBILITY) == 0u) return;
+  // The first HT_CUT_MAX_CAPS slots, each in its own (indices the loops
+  // unroll to constants, so that the caps stay in registers).
   const uint slots = occluderSlots(position, normal, uint(HT_CUT_MAX_CAPS));
-  uint kept = 0u;
-  [[unroll]] for (uint k = 0u; k < kCapSlots; ++k)
-    if (((slots >> k) & 1u) != 0u && kept < uint(HT_CUT_MAX_CAPS) &&
-        cutAddCap(kept, gOccluderAxis[k], gOccluderSine[k]))
-      ++kept;
+  [[unroll]] for (uint k = 0u; k < kCutCapSlots; ++k)
+    if (((slots >> k) & 1u) != 0u) cutAddCap(k, gOccluderAxis[k], gOccluderSine[k]);
 }
 
 // cutClippedCosine.
