@@ -147,8 +147,8 @@ struct MethodOptions;
 // ht-cut's options for a render's method options.
 CutOptions cutOptionsFor(const MethodOptions& options);
 
-// The caps a point keeps at most: the first of occluders with this many
-// slots, the planes' (but the one it lies on) and the largest spheres'.
+// The caps a point keeps at most: the first entries of occluders with this
+// many slots, the largest spheres' and the planes' (but the one it lies on).
 constexpr size_t kCutMaxCaps = HT_CUT_MAX_CAPS;
 static_assert(kCutMaxCaps <= kMaxCaps);
 
