@@ -121,8 +121,8 @@
 #define HT_CUT_MAX_NODES 512
 #define HT_CUT_HORIZON_FLOOR 0.0625  // kCutHorizonFloor (exact in float)
 #define HT_CUT_MIN_SHARE 0.125       // kCutMinShare (exact in float)
-// ht-cut's caps per point at most (of HT_MAX_CAPS): the planes, then the
-// largest spheres.
+// ht-cut's caps per point at most: the first this many occluder slots (of
+// HT_MAX_CAPS), the largest spheres in what the planes leave, then the planes.
 #define HT_CUT_MAX_CAPS 8
 #define HT_CUT_VISIBILITY 1u
 #define HT_CUT_COLOUR_CONTROL 2u

@@ -144,6 +144,7 @@ def main():
                     row["map"] = label
                     rows.append(row)
 
+        sphere_runs = max(args.runs, args.sphere_runs)
         if "spheres" in sweeps:
             w, h = map(int, args.sphere_size.split("x"))
             env = str((ROOT / "data" / "env" / "sunrise.exr").resolve())
@@ -153,10 +154,10 @@ def main():
                 for device in [d for d in args.sphere_devices.split(",") if d]:
                     for m in [m for m in args.sphere_methods.split(",") if m]:
                         rows.append(point(args, "spheres", sc, m, n, args.sweep_spp, w, h, tmp, device=device,
-                                          label=f"{m} ({device})", runs=max(args.runs, args.sphere_runs)))
+                                          label=f"{m} ({device})", runs=sphere_runs))
 
     result = {"machine": machine(), "device": args.device, "runs": args.runs,
-              "sphere_runs": max(args.runs, args.sphere_runs), "scene": Path(args.scene).name,
+              "sphere_runs": sphere_runs, "scene": Path(args.scene).name,
               "width": args.width, "height": args.height, "sweep_spp": args.sweep_spp, "results": rows}
     write_atomic(outdir / "scaling.json", json.dumps(result, indent=2))
     cols = ["sweep", "method", "x", "map", "spp", "width", "height", "nside", "seconds", "environment",
