@@ -65,6 +65,8 @@ uint gCutCaps;
 const uint kCutCapSlots = kCapSlots < uint(HT_CUT_MAX_CAPS) ? kCapSlots : uint(HT_CUT_MAX_CAPS);
 // The cut's prefix sums at the point (cum[k]: the weights before node k).
 float gCutCum[HT_CUT_MAX_NODES + 1];
+// The cut nodes whose children the point weighs, at most all K.
+uint gCutRefined[HT_CUT_MAX_NODES];
 
 void cutAddCap(uint k, vec3 axis, float s0) {
   // The plane the point lies on: its cap is the point's horizon, which the
@@ -237,35 +239,39 @@ uint cutPick(float w[4], inout hreal u, out float prob) {
 // The point's weights over the cut into gCutCum (withLobe: a lobe alone's);
 // returns their total and the weighted sum of the nodes' chroma.
 float cutWeightsWith(bool withLobe, out vec3 chromaSum) {
+  uint K = scene.cutCount;
+  // The nodes' weights (node k's in gCutCum[k + 1]), and a list of those
+  // the horizon or a cap cuts.
+  uint refined = 0u;
+  for (uint k = 0u; k < K; ++k) {
+    bool uncertain = false;
+    CutNodeData n = cutRecord(k);
+    gCutCum[k + 1u] = cutWeightOf(n, withLobe, uncertain);
+    if (uncertain && n.level < scene.cutMomentLevel) gCutRefined[refined++] = k;
+  }
+  // Their children, each lane its own list: llvmpipe runs a loop's body
+  // for its SIMD group while any lane is in it, so the group pays the
+  // longest list, not every node some lane refines.
+  for (uint i = 0u; subgroupAny(i < refined); ++i) {
+    if (i >= refined) continue;
+    uint k = gCutRefined[i];
+    precise float children = 0.0;
+    [[dont_unroll]] for (uint j = 0u; j < 4u; ++j) {
+      bool unused = false;
+      precise float v = cutWeightOf(cutRecord(K + 4u * k + j), withLobe, unused);
+      children = children + v;
+    }
+    if (children > 0.0) gCutCum[k + 1u] = children;
+  }
+  // The prefix sums in place, in the CPU's order.
   precise float total = 0.0;
   precise vec3 chroma = vec3(0.0);
-  uint K = scene.cutCount;
   for (uint k = 0u; k < K; ++k) {
-    // The node, then where the horizon or a cap cuts it its four children,
-    // as passes of one loop: llvmpipe runs a loop's body for its SIMD group
-    // as long as any lane is in it, so a loop of its own for the children
-    // would cost a pass at every node.
-    precise float w = 0.0;
-    precise float children = 0.0;
-    vec3 nodeChroma = vec3(0.0);
-    uint probes = 1u;
-    [[dont_unroll]] for (uint j = 0u; j < probes; ++j) {
-      bool uncertain = false;
-      CutNodeData n = cutRecord(j == 0u ? k : K + 4u * k + j - 1u);
-      precise float v = cutWeightOf(n, withLobe, uncertain);
-      if (j == 0u) {
-        w = v;
-        nodeChroma = n.chroma;
-        probes = uncertain && n.level < scene.cutMomentLevel ? 5u : 1u;
-      } else {
-        children = children + v;
-      }
-    }
-    if (children > 0.0) w = children;
+    float w = gCutCum[k + 1u];
     gCutCum[k] = total;
     total = total + w;
     precise float share = total - gCutCum[k];
-    chroma = chroma + share * nodeChroma;
+    chroma = chroma + share * cutRecordTexel(4u * k + 2u).xyz;
   }
   gCutCum[K] = total;
   chromaSum = chroma;
