@@ -119,6 +119,14 @@ struct EnvCut {
 // The cut of `nodes` nodes (12 to HT_CUT_MAX_NODES); `g`: the map's order.
 EnvCut buildEnvCut(const Environment& env, const HtGeometry& g, int nodes);
 
+// The cut's size for n directions per point where none is asked for
+// (nodes < 0; n = 0 where n is not known): 8 n within [256,
+// HT_CUT_MAX_NODES]. Weighing the cut is a fixed cost per point: at more
+// directions per point a finer cut pays for itself.
+inline int cutNodesFor(int nodes, int n) {
+  return nodes >= 0 ? nodes : std::clamp(8 * std::max(n, 0), 256, HT_CUT_MAX_NODES);
+}
+
 // A lobe alone's share of its n directions drawn from the BRDF,
 // rho / (rho + w) within [1/4, 3/4]: w the lobe's width (GGX alpha; Phong
 // 1 / (2 sqrt(exponent + 1)), its spread about the mirror direction being

@@ -18,6 +18,7 @@
 #include <tbb/info.h>
 
 #include "gpu_render.h"
+#include "ht_cut.h"
 #include "image_io.h"
 #include "memory.h"
 #include "output_file.h"
@@ -190,6 +191,9 @@ RenderSettings renderSettings(const RenderOptions& o, const Scene& scene, Method
   rs.height = o.height > 0 ? o.height : scene.height;
   rs.progress = !o.quiet;
   rs.options = methodOptions(o);
+  if (rs.options.cutNodes >= 0 && rs.options.cutNodes < 12)
+    throw Error(fmt::format("--cut-nodes {}: -1 (by spp) or 12 to {}", rs.options.cutNodes, HT_CUT_MAX_NODES));
+  rs.options.cutNodes = cutNodesFor(rs.options.cutNodes, rs.spp);
   return rs;
 }
 

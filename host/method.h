@@ -60,7 +60,7 @@ struct MethodOptions {
   int restirNeighbours = 5;                      // restir*: neighbours k per round
   int restirRadius = 30;                         // restir*: neighbours within this many pixels in x and y
   int restirRounds = 2;                          // restir*: rounds r of spatial reuse
-  int cutNodes = 256;                            // ht-cut: nodes K of the environment's cut
+  int cutNodes = -1;                             // ht-cut: nodes K of the environment's cut (< 0: by spp, cutNodesFor)
   SamplerKind sampler = SamplerKind::Stratified;  // every method: the per-pixel sample points (sampler.h)
 };
 

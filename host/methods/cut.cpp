@@ -18,14 +18,15 @@ CutOptions cutOptionsFor(const MethodOptions&) { return CutOptions{}; }
 namespace {
 
 const MethodOption kCutOptions[] = {
-    {"--cut-nodes", "cut_nodes", "ht-cut: nodes K of the environment's cut, each weighed at every shading point", {},
-     12, HT_CUT_MAX_NODES, [](const MethodOptions& o) { return o.cutNodes; },
+    {"--cut-nodes", "cut_nodes",
+     "ht-cut: nodes K of the environment's cut, each weighed at every shading point (-1: 8 x spp within [256, 512])",
+     {}, -1, HT_CUT_MAX_NODES, [](const MethodOptions& o) { return o.cutNodes; },
      [](MethodOptions& o, int v) { o.cutNodes = v; }},
 };
 
 void prepareCut(const Scene& scene, Method, const MethodOptions& options, TablesFor, MethodTables& t) {
   t.htGeometry = buildHtGeometry(scene.environment.order);
-  t.setOwn(std::make_shared<const EnvCut>(buildEnvCut(scene.environment, *t.htGeometry, options.cutNodes)));
+  t.setOwn(std::make_shared<const EnvCut>(buildEnvCut(scene.environment, *t.htGeometry, cutNodesFor(options.cutNodes, 0))));
 }
 
 glm::vec3 estimate(const Scene& scene, const ShadingPoint& sp, Method, int spp, Rng& rng, PixelSampler& sampler,
