@@ -557,7 +557,7 @@ GpuPush GpuRenderer::Impl::tilePush(const RenderSettings& s, uint32_t x, uint32_
 
 GpuRenderResult GpuRenderer::render(const RenderSettings& s) {
   impl_->checkMethod(s);
-  return render(s, prepareTables(*impl_->hostScene, s.method, s.options, TablesFor::Gpu));
+  return render(s, prepareTables(*impl_->hostScene, s.method, optionsForSpp(s.options, s.spp), TablesFor::Gpu));
 }
 
 void GpuRenderer::uploadTables(const RenderSettings& s, const MethodTables& tables) {

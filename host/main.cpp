@@ -193,7 +193,7 @@ RenderSettings renderSettings(const RenderOptions& o, const Scene& scene, Method
   rs.options = methodOptions(o);
   if (rs.options.cutNodes >= 0 && rs.options.cutNodes < 12)
     throw Error(fmt::format("--cut-nodes {}: -1 (by spp) or 12 to {}", rs.options.cutNodes, HT_CUT_MAX_NODES));
-  rs.options.cutNodes = cutNodesFor(rs.options.cutNodes, rs.spp);
+  rs.options = optionsForSpp(rs.options, rs.spp);
   return rs;
 }
 

@@ -10,11 +10,18 @@
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
+#include "ht_cut.h"
+
 namespace ht {
+
+MethodOptions optionsForSpp(MethodOptions options, int spp) {
+  options.cutNodes = cutNodesFor(options.cutNodes, spp);
+  return options;
+}
 
 RenderResult renderCpu(const Scene& scene, const RenderSettings& s) {
   const auto start = std::chrono::steady_clock::now();
-  const MethodTables tables = prepareTables(scene, s.method, s.options);
+  const MethodTables tables = prepareTables(scene, s.method, optionsForSpp(s.options, s.spp));
   RenderResult result = renderCpu(scene, s, tables);
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

@@ -31,6 +31,10 @@ struct RenderResult {
   std::vector<uint32_t> pixelDirections;  // with RenderSettings::pixelCounts: per pixel, y * width + x
 };
 
+// The options a render of `spp` samples per pixel runs with: those given,
+// with the defaults that depend on spp settled (ht-cut's K, cutNodesFor).
+MethodOptions optionsForSpp(MethodOptions options, int spp);
+
 // Random stream of a pixel: the same for every method, device and thread count.
 inline uint32_t pixelStream(int x, int y, int width) { return uint32_t(y) * uint32_t(width) + uint32_t(x); }
 
