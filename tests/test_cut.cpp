@@ -93,9 +93,6 @@ TEST(Cut, NodesPartitionTheSphere) {
   EXPECT_NEAR(glm::length(cut.moment[sunAt]), power, 1e-3f * power);
 }
 
-// Directions drawn from uniform points of the cut's prefix sums follow the
-// density the point reports (chi-square over HEALPix bins, Sidak-corrected
-// over the setups); each sample's pdf is the one pdf(pixel) gives.
 // A render's K: 8 x spp within [256, HT_CUT_MAX_NODES] unless given; the
 // CPU reference and the GPU path both take it from optionsForSpp.
 TEST(Cut, SizeFollowsSppUnlessGiven) {
@@ -109,13 +106,13 @@ TEST(Cut, SizeFollowsSppUnlessGiven) {
   EXPECT_EQ(optionsForSpp(given, 1024).cutNodes, 100);
   Scene scene = readSceneFile(std::string(HT_TEST_DATA) + "/scenes/spheres.json");
   scene.environment = sunriseAt(6);
-  RenderSettings rs;
-  rs.method = Method::HtCut;
-  rs.spp = 64;
-  const MethodTables tables = prepareTables(scene, rs.method, optionsForSpp(rs.options, rs.spp));
+  const MethodTables tables = prepareTables(scene, Method::HtCut, optionsForSpp(MethodOptions{}, 64));
   EXPECT_EQ(tables.own<EnvCut>().nodes.size(), 510u);  // 12 + 3 x 166: each split adds three
 }
 
+// Directions drawn from uniform points of the cut's prefix sums follow the
+// density the point reports (chi-square over HEALPix bins, Sidak-corrected
+// over the setups); each sample's pdf is the one pdf(pixel) gives.
 TEST(Cut, DensityMatchesItsSamples) {
   const std::vector<ShadingSetup> all = setups();
   constexpr int kBinOrder = 3;
