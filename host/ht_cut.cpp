@@ -111,7 +111,31 @@ EnvCut buildEnvCut(const Environment& env, const HtGeometry& g, int nodes) {
       for (uint64_t j = 0; j < 4; ++j)
         cut.lights[K + 4 * k + j] = cut.light(tree, g, n.level + 1, MaxAvgTree::levelOffset(n.level + 1) + 4 * n.node + j);
   }
+  cut.columns.fill(cut.lights.data(), K, cut.entry);
   return cut;
+}
+
+void CutColumns::fill(const CutLight* lights, size_t count, std::vector<uint32_t>& entry) {
+  levelBegin.assign(size_t(kCutMomentLevel) + 2, 0);
+  for (size_t k = 0; k < count; ++k) ++levelBegin[size_t(lights[k].level) + 1];
+  for (size_t l = 1; l < levelBegin.size(); ++l) levelBegin[l] += levelBegin[l - 1];
+  entry.resize(count);
+  for (auto* column : {&x, &y, &z, &power, &mx, &my, &mz}) column->resize(count);
+  for (size_t k = 0; k < count; ++k) {
+    const CutLight& n = lights[k];
+    const size_t i = levelBegin[size_t(n.level)]++;
+    entry[k] = uint32_t(i);
+    x[i] = n.centre.x;
+    y[i] = n.centre.y;
+    z[i] = n.centre.z;
+    power[i] = n.power;
+    mx[i] = n.moment.x;
+    my[i] = n.moment.y;
+    mz[i] = n.moment.z;
+  }
+  // Each level's begin, from its end.
+  for (size_t l = levelBegin.size() - 1; l > 0; --l) levelBegin[l] = levelBegin[l - 1];
+  levelBegin[0] = 0;
 }
 
 CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh, const CutOptions& options,
@@ -167,6 +191,30 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
   }
 }
 
+// Every slot's share in a second loop like weight's, kept where the cap
+// covers the node in part.
+inline float CutPoint::visibleShare(const glm::vec3& centre, int level) const {
+  const size_t l = size_t(level);
+  const float* outside = caps.outside.data() + l * kCutMaxCaps;
+  const float *x = caps.x.data(), *y = caps.y.data(), *z = caps.z.data();
+  const float cx = centre.x, cy = centre.y, cz = centre.z;
+  const float rn = cut.discChord[l];
+  const float* chord = caps.chord.data();
+  std::array<float, kCutMaxCaps> open;
+  for (size_t j = 0; j < kCutMaxCaps; ++j) {
+    const float d = (cx * x[j] + cy * y[j]) + cz * z[j];
+    const float small = std::min(rn, chord[j]);
+    const float dist = std::sqrt(std::max(2.0f - 2.0f * d, 0.0f));
+    const float s = std::min(std::max((dist - std::abs(rn - chord[j])) / (2.0f * small), 0.0f), 1.0f);
+    const float ratio = small / rn;
+    const float share = (1.0f - s * s * (3.0f - 2.0f * s)) * (ratio * ratio);
+    open[j] = d > outside[j] ? 1.0f - share : 1.0f;
+  }
+  float visible = 1.0f;
+  for (const float v : open) visible = std::min(visible, v);
+  return visible;
+}
+
 // The diffuse part is exact where the node lies above the horizon; where
 // the horizon cuts its disc, at least the clipped disc's estimate; and at
 // least kCutHorizonFloor x its power x the cos of its bounding cone's
@@ -216,22 +264,82 @@ float CutPoint::weight(const CutLight& n, bool withLobe, bool* uncertain) const 
   }
   if (covered) return 0.0f;
   if (!partial) return w;
-  // Every slot's share in a second such loop, kept where the cap covers
-  // the node in part.
-  const float rn = cut.discChord[l];
-  const float* chord = caps.chord.data();
-  std::array<float, kCutMaxCaps> open;
-  for (size_t j = 0; j < kCutMaxCaps; ++j) {
-    const float d = (cx * x[j] + cy * y[j]) + cz * z[j];
-    const float small = std::min(rn, chord[j]);
-    const float dist = std::sqrt(std::max(2.0f - 2.0f * d, 0.0f));
-    const float s = std::min(std::max((dist - std::abs(rn - chord[j])) / (2.0f * small), 0.0f), 1.0f);
-    const float ratio = small / rn;
-    const float share = (1.0f - s * s * (3.0f - 2.0f * s)) * (ratio * ratio);
-    open[j] = d > outside[j] ? 1.0f - share : 1.0f;
+  const float visible = visibleShare(centre, n.level);
+  if (uncertain && visible < 1.0f) *uncertain = true;
+  return w * std::max(visible, minPartial);
+}
+
+namespace {
+
+// The columns a level's loops read and write.
+struct LevelColumns {
+  const float *__restrict x, *__restrict y, *__restrict z, *__restrict power;
+  const float *__restrict mx, *__restrict my, *__restrict mz;
+  float* __restrict w;
+  int32_t* __restrict flags;
+  size_t count;
+};
+
+// CutPoint::weight's diffuse part over a level's columns, each branch a
+// selection: w, and flags bit 0 where the horizon cuts the node.
+void diffuseWeights(const LevelColumns& c, glm::vec3 n, float diffuse, float sinR, float cosR, float sinRb) {
+  const float nx = n.x, ny = n.y, nz = n.z;
+  for (size_t i = 0; i < c.count; ++i) {
+    const float power = c.power[i];
+    const float sinE = (c.x[i] * nx + c.y[i] * ny) + c.z[i] * nz;
+    const float dm = (c.mx[i] * nx + c.my[i] * ny) + c.mz[i] * nz;
+    const float clipped = power * cutClippedCosine(sinE, sinR);
+    const float cutBy = sinE <= -sinR ? 0.0f : (dm < clipped ? clipped : dm);
+    const float d = sinE < sinR ? cutBy : dm;
+    const float e = 1.0f - sinE * sinE;
+    const float cosE = std::sqrt(0.0f < e ? e : 0.0f);
+    const float top = sinE >= cosR ? 1.0f : sinE * cosR + cosE * sinRb;
+    const float floorW = kCutHorizonFloor * power * (top < 0.0f ? 0.0f : top);
+    const bool lit = power > 0.0f;
+    const float weighted = diffuse * (d < floorW ? floorW : d);
+    c.w[i] = lit ? weighted : 0.0f;
+    c.flags[i] = int32_t(lit & (sinE < sinR) & (sinE > -sinR));
   }
-  float visible = 1.0f;
-  for (const float v : open) visible = std::min(visible, v);
+}
+
+// One cap's tests over a level's columns: flags bit 2 where it covers the
+// node, bit 1 where it covers it in part.
+void capTests(const LevelColumns& c, float ax, float ay, float az, float inside, float outside) {
+  for (size_t i = 0; i < c.count; ++i) {
+    const float d = (c.x[i] * ax + c.y[i] * ay) + c.z[i] * az;
+    c.flags[i] |= (d >= inside ? 4 : 0) | (d > outside ? 2 : 0);
+  }
+}
+
+}  // namespace
+
+// Each cap's tests a pass of their own, so that every loop over a level's
+// columns runs in vector registers.
+void CutPoint::openWeights(const CutColumns& c, float* w, int32_t* flags) const {
+  for (size_t l = 0; l + 1 < c.levelBegin.size(); ++l) {
+    const size_t b = c.levelBegin[l];
+    const LevelColumns level{c.x.data() + b,  c.y.data() + b,  c.z.data() + b,  c.power.data() + b, c.mx.data() + b,
+                             c.my.data() + b, c.mz.data() + b, w + b,           flags + b,          c.levelBegin[l + 1] - b};
+    if (level.count == 0) continue;
+    diffuseWeights(level, normal, diffuse, cut.discSin[l], g.levelCosRadius[l], g.levelSinRadius[l]);
+    for (size_t j = 0; j < size_t(caps.count); ++j)
+      capTests(level, caps.x[j], caps.y[j], caps.z[j], caps.inside[l * kCutMaxCaps + j], caps.outside[l * kCutMaxCaps + j]);
+  }
+  // weight's order: a covered node has no weight, a node of none no caps.
+  float* __restrict weights = w;
+  int32_t* __restrict bits = flags;
+  for (size_t i = 0, count = c.x.size(); i < count; ++i) {
+    const int32_t tested = weights[i] > 0.0f ? 1 : 0, covered = (bits[i] >> 2) & 1;
+    weights[i] = (tested & covered) != 0 ? 0.0f : weights[i];
+    bits[i] &= 1 | ((tested & (covered ^ 1)) << 1);
+  }
+}
+
+float CutPoint::diffuseWeight(const CutColumns& c, size_t i, int level, float w, int32_t flags,
+                              bool* uncertain) const {
+  if (uncertain && (flags & 1) != 0) *uncertain = true;
+  if ((flags & 2) == 0) return w;
+  const float visible = visibleShare(glm::vec3(c.x[i], c.y[i], c.z[i]), level);
   if (uncertain && visible < 1.0f) *uncertain = true;
   return w * std::max(visible, minPartial);
 }
@@ -246,20 +354,64 @@ void CutDensity::reset(const CutPoint& point, const Environment& env, const CutO
   cum_.resize(K + 1);
   children_.resize(4 * K);
   kept_.assign(K, 0);
+  // A diffuse point's weights by the columns, and its refined nodes'
+  // children's by columns of their own; a lobe alone's node by node.
+  const bool columns = !lobe && point.diffuse > 0.0f;
+  if (columns) {
+    open_.resize(K);
+    flags_.resize(K);
+    nodeWeight_.resize(K);
+    point.openWeights(cut.columns, open_.data(), flags_.data());
+    refined_.clear();
+    childLights_.clear();
+    for (size_t k = 0; k < K; ++k) {
+      const uint32_t i = cut.entry[k];
+      const int level = cut.nodes[k].level;
+      bool uncertain = false;
+      nodeWeight_[k] = point.diffuseWeight(cut.columns, i, level, open_[i], flags_[i], &uncertain);
+      if (uncertain && level < cut.momentLevel) {
+        refined_.push_back(uint32_t(k));
+        const auto first = cut.lights.begin() + int64_t(K + 4 * k);
+        childLights_.insert(childLights_.end(), first, first + 4);
+      }
+    }
+    if (!refined_.empty()) {
+      childColumns_.fill(childLights_.data(), childLights_.size(), refinedEntry_);
+      childOpen_.resize(childLights_.size());
+      childFlags_.resize(childLights_.size());
+      point.openWeights(childColumns_, childOpen_.data(), childFlags_.data());
+      for (size_t r = 0; r < refined_.size(); ++r) {
+        const uint32_t k = refined_[r];
+        float* cw = &children_[4 * k];
+        for (size_t j = 0; j < 4; ++j) {
+          const uint32_t e = refinedEntry_[4 * r + j];
+          cw[j] = point.diffuseWeight(childColumns_, e, cut.nodes[k].level + 1, childOpen_[e], childFlags_[e], nullptr);
+        }
+        kept_[k] = 1;
+        const float children = ((cw[0] + cw[1]) + cw[2]) + cw[3];
+        if (children > 0.0f) nodeWeight_[k] = children;
+      }
+    }
+  }
   float total = 0.0f;
   glm::vec3 chromaSum(0.0f);
   for (size_t k = 0; k < K; ++k) {
     const CutNode& c = cut.nodes[k];
-    bool uncertain = false;
-    float w = point.weight(cut.lights[k], lobe, &uncertain);
-    // Its four children's weights where the horizon or a cap cuts it: the
-    // descent's first step draws by them, so any weight keeps the pdf.
-    if (uncertain && c.level < cut.momentLevel) {
-      float* cw = &children_[4 * k];
-      for (size_t j = 0; j < 4; ++j) cw[j] = point.weight(cut.lights[K + 4 * k + j], lobe);
-      kept_[k] = 1;
-      const float children = ((cw[0] + cw[1]) + cw[2]) + cw[3];
-      if (children > 0.0f) w = children;
+    float w;
+    if (columns) {
+      w = nodeWeight_[k];
+    } else {
+      bool uncertain = false;
+      w = point.weight(cut.lights[k], lobe, &uncertain);
+      // Its four children's weights where the horizon or a cap cuts it: the
+      // descent's first step draws by them, so any weight keeps the pdf.
+      if (uncertain && c.level < cut.momentLevel) {
+        float* cw = &children_[4 * k];
+        for (size_t j = 0; j < 4; ++j) cw[j] = point.weight(cut.lights[K + 4 * k + j], lobe);
+        kept_[k] = 1;
+        const float children = ((cw[0] + cw[1]) + cw[2]) + cw[3];
+        if (children > 0.0f) w = children;
+      }
     }
     cum_[k] = total;
     total += w;

@@ -91,12 +91,26 @@ struct CutLight {
   int level;
 };
 
+// Lights grouped by level, a column per quantity (entries levelBegin[l]
+// to levelBegin[l + 1] of level l): a point weighs them in one loop per
+// level, which compilers vectorise.
+struct CutColumns {
+  std::vector<float> x, y, z, power, mx, my, mz;  // centre, power, first moment
+  std::vector<size_t> levelBegin;
+  // The columns of `lights` (levels below kCutMomentLevel + 1), and in
+  // entry each light's entry.
+  void fill(const CutLight* lights, size_t count, std::vector<uint32_t>& entry);
+};
+
 struct EnvCut {
   std::vector<CutNode> nodes;    // along the nested index
   // The nodes' lights, then each one's four children's (K + 4k + j; zero
   // power below momentLevel): what the loop over the cut and the descent's
   // first step read.
   std::vector<CutLight> lights;
+  // The K nodes' lights again as columns, and each one's entry there.
+  CutColumns columns;
+  std::vector<uint32_t> entry;
   int lookupLevel = 0;           // min(kCutMaxLevel, the map's order)
   std::vector<uint32_t> lookup;  // per node of lookupLevel: the cut node holding it
   int momentLevel = 0;           // min(kCutMomentLevel, the map's order)
@@ -181,6 +195,17 @@ struct CutPoint {
     return weight(cut.light(tree, g, level, at), withLobe, uncertain);
   }
   float weight(const CutLight& n, bool withLobe, bool* uncertain = nullptr) const;
+  // The share of a node of `level` centred at `centre` that the caps
+  // covering it in part leave open (1 where none does).
+  float visibleShare(const glm::vec3& centre, int level) const;
+  // A diffuse point's weights (weight without the lobe) of the columns'
+  // entries, all but the shares visibleShare gives: w[i] the weight where
+  // no cap covers the node in part, else before that share (0 where a cap
+  // covers it); flags[i] bit 0 where the horizon cuts it, bit 1 where a
+  // cap covers it in part.
+  void openWeights(const CutColumns& columns, float* w, int32_t* flags) const;
+  // weight(n, false, uncertain) of the columns' entry i from openWeights.
+  float diffuseWeight(const CutColumns& columns, size_t i, int level, float w, int32_t flags, bool* uncertain) const;
 
   const EnvCut& cut;
   const HtGeometry& g;
@@ -224,6 +249,13 @@ class CutDensity {
   std::vector<float> cum_;  // cum_[k]: the weights before node k; node k's is cum_[k + 1] - cum_[k]
   std::vector<float> children_;  // 4k + j: cut node k's children's weights where kept
   std::vector<uint8_t> kept_;    // per cut node: whether children_ holds its children's
+  // A diffuse point's scratch: openWeights of the cut's columns and of the
+  // children of the nodes the horizon or a cap cuts.
+  std::vector<float> open_, childOpen_, nodeWeight_;
+  std::vector<int32_t> flags_, childFlags_;
+  std::vector<uint32_t> refined_, refinedEntry_;
+  std::vector<CutLight> childLights_;
+  CutColumns childColumns_;
   float total_ = 0.0f;
   glm::vec3 colourMean_{0.0f};
 };

@@ -142,6 +142,48 @@ TEST(Cut, DensityMatchesItsSamples) {
   }
 }
 
+// A point with a diffuse lobe weighs the cut by columns, a level at a
+// time, and its refined nodes' children by columns of their own: every
+// node's weight, and so its probability, is bit for bit the one CutPoint::
+// weight gives node by node, children where the horizon or a cap cuts it.
+TEST(Cut, ColumnsWeighAsNodeByNode) {
+  int refined = 0, partial = 0, withCaps = 0;
+  for (const ShadingSetup& s : setups()) {
+    PreparedPoint p;
+    prepare(s, p);
+    const CutPoint& point = *p.point;
+    if (point.lobeOnly || !(point.diffuse > 0.0f)) continue;
+    withCaps += point.caps.count > 0;
+    const EnvCut& cut = point.cut;
+    const size_t K = cut.nodes.size();
+    std::vector<float> cum(K + 1, 0.0f);
+    for (size_t k = 0; k < K; ++k) {
+      bool uncertain = false;
+      float w = point.weight(cut.lights[k], false, &uncertain);
+      if (w > 0.0f && point.caps.count > 0) {
+        CutPoint open = point;
+        open.caps.count = 0;
+        partial += open.weight(cut.lights[k], false) != w;
+      }
+      if (uncertain && cut.nodes[k].level < cut.momentLevel) {
+        ++refined;
+        float children = 0.0f;
+        for (size_t j = 0; j < 4; ++j) children += point.weight(cut.lights[K + 4 * k + j], false);
+        if (children > 0.0f) w = children;
+      }
+      cum[k + 1] = cum[k] + w;
+    }
+    ASSERT_EQ(p.density.total(), cum[K]) << s.name;
+    for (size_t k = 0; k < K; ++k)
+      ASSERT_EQ(p.density.nodeProbability(uint32_t(k)), double((cum[k + 1] - cum[k]) / cum[K])) << s.name << " node " << k;
+  }
+  // The setups reach the columns' every branch: caps, nodes they cover in
+  // part, nodes refined.
+  EXPECT_GT(withCaps, 0);
+  EXPECT_GT(partial, 0);
+  EXPECT_GT(refined, 0);
+}
+
 // The density is positive wherever a diffuse point's integrand can be,
 // which lets it draw no BRDF directions: every pixel above the horizon
 // that the caps leave visible has p_c > 0.
