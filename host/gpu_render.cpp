@@ -66,7 +66,7 @@ constexpr vk::BindingLayout kBindings[] = {
     {HT_BINDING_FRONTIER_BINS_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
     {HT_BINDING_BVH_NODES, 0, sizeof(GpuBvhNode)},
     {HT_BINDING_BVH_ORDER, 0, sizeof(uint32_t)},
-    {HT_BINDING_CUT_MOMENT_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_CUT_TREE_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
     {HT_BINDING_CUT_RECORD_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
     {HT_BINDING_CUT_LOOKUP_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
 };

@@ -35,7 +35,7 @@ layout(set = 0, binding = HT_BINDING_HT_CONES_TEXELS) uniform samplerBuffer htCo
 layout(set = 0, binding = HT_BINDING_FRONTIER_CHROMA_TEXELS) uniform samplerBuffer frontierChromaTexels;
 layout(set = 0, binding = HT_BINDING_FRONTIER_CENTROID_TEXELS) uniform samplerBuffer frontierCentroidTexels;
 layout(set = 0, binding = HT_BINDING_FRONTIER_BINS_TEXELS) uniform usamplerBuffer frontierBinsTexels;
-layout(set = 0, binding = HT_BINDING_CUT_MOMENT_TEXELS) uniform samplerBuffer cutMomentTexels;
+layout(set = 0, binding = HT_BINDING_CUT_TREE_TEXELS) uniform samplerBuffer cutTreeTexels;
 layout(set = 0, binding = HT_BINDING_CUT_RECORD_TEXELS) uniform samplerBuffer cutRecordTexels;
 layout(set = 0, binding = HT_BINDING_CUT_LOOKUP_TEXELS) uniform usamplerBuffer cutLookupTexels;
 

@@ -33,7 +33,7 @@
 #define HT_BINDING_FRONTIER_BINS_TEXELS 12      // ht-frontier: colour bins, four per uint (R32_UINT)
 #define HT_BINDING_BVH_NODES 13  // GpuBvhNode[]: the spheres' BVH (host/bvh.h), depth first
 #define HT_BINDING_BVH_ORDER 14  // uint[]: its sphere indices, leaf by leaf
-#define HT_BINDING_CUT_MOMENT_TEXELS 15  // ht-cut: EnvCut::moment (R32_SFLOAT, three per node)
+#define HT_BINDING_CUT_TREE_TEXELS 15  // ht-cut: GpuScene::cutTree (R32G32B32A32_SFLOAT)
 #define HT_BINDING_CUT_RECORD_TEXELS 16  // ht-cut: GpuScene::cutRecord (R32G32B32A32_SFLOAT)
 #define HT_BINDING_CUT_LOOKUP_TEXELS 17  // ht-cut: EnvCut::lookup (R32_UINT)
 #define HT_BVH_LEAF_SIZE 4       // spheres per leaf, at most (kBvhLeafSize)
@@ -271,13 +271,15 @@ struct GpuScene {
   uint restirNeighbours;  // k: neighbours per round
   uint restirRadius;      // neighbours within this many pixels in x and y
   uint restirRounds;      // r: rounds of spatial reuse
-  // ht-cut (host/ht_cut.h): the tree's first moments down to cutMomentLevel
-  // (EnvCut::moment); cutRecord: four vec4 per node a point weighs in its
-  // loop over the cut, the K nodes then each one's four children (centre,
-  // sine of its disc's radius; moment, power; chroma, cos of its bounding
-  // radius; its sine, the disc's chord radius, level and index in the
-  // tree's layout as floats); the lookup (EnvCut::lookup); 0 if absent.
-  HT_CHUNK_REF(Vec3Chunk) cutMoment;
+  // ht-cut (host/ht_cut.h): cutTree: two vec4 per tree node down to the
+  // descent's last level, min(cutProductLevel, cutMomentLevel), in the
+  // tree's layout (centre, power; first moment, 0); cutRecord: four vec4
+  // per node a point weighs in its loop over the cut, the K nodes then each
+  // one's four children (centre, sine of its disc's radius; moment, power;
+  // chroma, cos of its bounding radius; its sine, the disc's chord radius,
+  // level and index in the tree's layout as floats); the lookup
+  // (EnvCut::lookup); 0 if absent.
+  HT_CHUNK_REF(Vec4Chunk) cutTree;
   HT_CHUNK_REF(Vec4Chunk) cutRecord;
   HT_CHUNK_REF(UintChunk) cutLookup;
   uint cutCount;         // K

@@ -8,9 +8,9 @@
 #include "caps.glsl"
 #include "ht_point.glsl"
 
-vec3 cutMoment(uint i) {
-  if (kTexels) return texelVec3(cutMomentTexels, i);
-  return scene.cutMoment.v[i];
+vec4 cutTreeTexel(uint i) {
+  if (kTexels) return texelFetch(cutTreeTexels, int(i));
+  return scene.cutTree.v[i];
 }
 uint cutLookup(uint i) {
   if (kTexels) return texelFetch(cutLookupTexels, int(i)).x;
@@ -37,10 +37,10 @@ CutNodeData cutRecord(uint r) {
        d = cutRecordTexel(4u * r + 3u);
   return CutNodeData(a.xyz, a.w, b.xyz, b.w, c.xyz, c.w, d.x, d.y, uint(d.z), uint(d.w));
 }
-// The same from the tree's arrays, for the nodes below the records'.
+// The same from the tree's records, for the nodes below the cut's.
 CutNodeData cutTreeNode(uint level, uint at) {
-  precise float power = scene.cutOmega[level] * treeAvg(at);
-  return CutNodeData(htCenter(at), scene.cutDiscSin[level], cutMoment(at), power, vec3(0.0), scene.cutLevelCos[level],
+  vec4 a = cutTreeTexel(2u * at), b = cutTreeTexel(2u * at + 1u);
+  return CutNodeData(a.xyz, scene.cutDiscSin[level], b.xyz, a.w, vec3(0.0), scene.cutLevelCos[level],
                      scene.cutLevelSin[level], scene.cutDiscChord[level], level, at);
 }
 

@@ -162,7 +162,7 @@ TEST(GpuShaders, InterfaceMatchesCommonHeader) {
         case HT_BINDING_FRONTIER_CHROMA_TEXELS:
         case HT_BINDING_FRONTIER_CENTROID_TEXELS:
         case HT_BINDING_FRONTIER_BINS_TEXELS:
-        case HT_BINDING_CUT_MOMENT_TEXELS:
+        case HT_BINDING_CUT_TREE_TEXELS:
         case HT_BINDING_CUT_RECORD_TEXELS:
         case HT_BINDING_CUT_LOOKUP_TEXELS: EXPECT_EQ(b.kind, vk::BindingKind::UniformTexel); break;
         default: ADD_FAILURE() << "unexpected binding " << b.binding;

@@ -1,6 +1,8 @@
 // ht-cut on the Vulkan path: HT's node geometry, and per cut the records
-// of the nodes its loop weighs, the lookup and the tree's first moments
-// (GpuScene::cut*), through texel views where the scene has them.
+// of the nodes its loop weighs, the lookup and the records of the tree's
+// nodes the descent weighs (GpuScene::cut*), through texel views where the
+// scene has them.
+#include <algorithm>
 #include <cmath>
 
 #include "gpu_method.h"
@@ -22,7 +24,9 @@ class CutGpuState : public GpuMethodState {
     geometry_.upload(c, t);
     std::shared_ptr<const EnvCut> cutPtr = t.ownPtr<EnvCut>();
     const EnvCut& cut = *cutPtr;
-    if (cut_ != cutPtr) {
+    const CutOptions options = cutOptionsFor(s.options);
+    const int treeLevel = std::clamp(options.productLevel, 0, cut.momentLevel);
+    if (cut_ != cutPtr || treeLevel_ != treeLevel) {
       // The records the loop over the cut reads (GpuScene::cutRecord): its
       // K nodes, then each one's four children, CutPoint's lights with their
       // levels' constants.
@@ -43,14 +47,25 @@ class CutGpuState : public GpuMethodState {
           for (uint64_t j = 0; j < 4; ++j)
             record(K + 4 * k + j, MaxAvgTree::levelOffset(n.level + 1) + 4 * n.node + j, glm::vec3(0.0f));
       }
-      moment_ = uploadArray(c.ctx, cut.moment);
+      // The descent's nodes (GpuScene::cutTree): each one's CutLight in two
+      // texels, so that a child costs two fetches.
+      const MaxAvgTree& tree = c.hostScene.environment.tree;
+      std::vector<glm::vec4> nodes(2 * size_t(MaxAvgTree::levelOffset(treeLevel + 1)));
+      for (int level = 0; level <= treeLevel; ++level)
+        for (uint64_t i = 0; i < MaxAvgTree::levelSize(level); ++i) {
+          const uint64_t at = MaxAvgTree::levelOffset(level) + i;
+          const CutLight n = cut.light(tree, g, level, at);
+          nodes[2 * at] = glm::vec4(n.centre, n.power);
+          nodes[2 * at + 1] = glm::vec4(n.moment, 0.0f);
+        }
+      tree_ = uploadArray(c.ctx, nodes);
       record_ = uploadArray(c.ctx, records);
       lookup_ = uploadArray(c.ctx, cut.lookup);
       cut_ = cutPtr;
+      treeLevel_ = treeLevel;
     }
-    const CutOptions options = cutOptionsFor(s.options);
     GpuScene& gs = c.scene;
-    gs.cutMoment = moment_.address();
+    gs.cutTree = tree_.address();
     gs.cutRecord = record_.address();
     gs.cutLookup = lookup_.address();
     gs.cutCount = uint32_t(cut.nodes.size());
@@ -67,7 +82,7 @@ class CutGpuState : public GpuMethodState {
     std::copy(cut.omega.begin(), cut.omega.end(), gs.cutOmega);
     std::copy(g.levelCosRadius.begin(), g.levelCosRadius.end(), gs.cutLevelCos);
     std::copy(g.levelSinRadius.begin(), g.levelSinRadius.end(), gs.cutLevelSin);
-    c.texels[HT_BINDING_CUT_MOMENT_TEXELS].buffer = &moment_;
+    c.texels[HT_BINDING_CUT_TREE_TEXELS].buffer = &tree_;
     c.texels[HT_BINDING_CUT_RECORD_TEXELS].buffer = &record_;
     c.texels[HT_BINDING_CUT_LOOKUP_TEXELS].buffer = &lookup_;
   }
@@ -75,7 +90,8 @@ class CutGpuState : public GpuMethodState {
  private:
   GpuHtGeometry geometry_;
   std::shared_ptr<const EnvCut> cut_;
-  vk::Buffer moment_, record_, lookup_;
+  int treeLevel_ = -1;
+  vk::Buffer tree_, record_, lookup_;
 };
 
 }  // namespace
