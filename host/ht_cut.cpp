@@ -387,9 +387,7 @@ void CutDensity::reset(const CutPoint& point, const Environment& env, const CutO
           const uint32_t e = refinedEntry_[4 * r + j];
           cw[j] = point.diffuseWeight(childColumns_, e, cut.nodes[k].level + 1, childOpen_[e], childFlags_[e], nullptr);
         }
-        kept_[k] = 1;
-        const float children = ((cw[0] + cw[1]) + cw[2]) + cw[3];
-        if (children > 0.0f) nodeWeight_[k] = children;
+        nodeWeight_[k] = keepChildren(k, nodeWeight_[k]);
       }
     }
   }
@@ -408,9 +406,7 @@ void CutDensity::reset(const CutPoint& point, const Environment& env, const CutO
       if (uncertain && c.level < cut.momentLevel) {
         float* cw = &children_[4 * k];
         for (size_t j = 0; j < 4; ++j) cw[j] = point.weight(cut.lights[K + 4 * k + j], lobe);
-        kept_[k] = 1;
-        const float children = ((cw[0] + cw[1]) + cw[2]) + cw[3];
-        if (children > 0.0f) w = children;
+        w = keepChildren(uint32_t(k), w);
       }
     }
     cum_[k] = total;
@@ -420,6 +416,13 @@ void CutDensity::reset(const CutPoint& point, const Environment& env, const CutO
   cum_[K] = total;
   total_ = total;
   colourMean_ = total > 0.0f ? chromaSum / total : glm::vec3(0.0f);
+}
+
+float CutDensity::keepChildren(uint32_t k, float w) {
+  kept_[k] = 1;
+  const float* cw = &children_[4 * k];
+  const float children = ((cw[0] + cw[1]) + cw[2]) + cw[3];
+  return children > 0.0f ? children : w;
 }
 
 uint32_t CutDensity::node(double x) const {

@@ -243,6 +243,9 @@ class CutDensity {
   // childWeights of cut node k's children, kept from reset where it
   // weighed them.
   void firstChildWeights(uint32_t k, float (&w)[4]) const;
+  // Cut node k's weight w where children_ holds its children's: theirs, if
+  // they weigh anything.
+  float keepChildren(uint32_t k, float w);
   const CutPoint* point_ = nullptr;
   const Environment* env_ = nullptr;
   int productLevel_ = 0;
