@@ -123,27 +123,39 @@ uint capSpheres(vec3 origin, vec3 normal) { return capSpheresIn(origin, normal, 
 // none). `caps`: as capSpheresIn's.
 vec3 gOccluderAxis[HT_MAX_CAPS];
 float gOccluderSine[HT_MAX_CAPS];
+
+// The cap of the j-th sphere capSpheres chose, seen from `origin`: its axis
+// and the sine of its half-angle; false at the sphere's centre.
+bool sphereCap(uint j, vec3 origin, out vec3 axis, out float sine) {
+  GpuSphere sp = spheres[capSphere(j)];
+  precise vec3 d = sp.center - origin;
+  precise float dist = length3(d);
+  precise vec3 unit = d / dist;
+  precise float ratio = sp.radius / dist;
+  axis = normalize3(vec3(toHealpixFrame(unit)));
+  sine = min(1.0, ratio);
+  return dist > 0.0;
+}
+
+// The axis of plane k's cap (the half-space on its far side) from `origin`.
+vec3 planeCapAxis(uint k, vec3 origin) {
+  GpuPlane p = planes[k];
+  precise vec3 rel = origin - p.point;
+  float side = dot3(rel, p.normal);
+  vec3 below = side >= 0.0 ? -p.normal : p.normal;
+  return normalize3(vec3(toHealpixFrame(below)));
+}
+
 uint occluderSlots(vec3 position, vec3 normal, uint caps) {
   uint slots = 0u;
   precise vec3 origin = offsetRayOrigin(position, normal);
   const uint capped = capSpheresIn(origin, normal, caps);
   for (uint j = 0u; j < capped; ++j) {
-    GpuSphere sp = spheres[capSphere(j)];
-    precise vec3 d = sp.center - origin;
-    precise float dist = length3(d);
-    if (!(dist > 0.0)) continue;
-    precise vec3 unit = d / dist;
-    precise float ratio = sp.radius / dist;
-    gOccluderAxis[j] = normalize3(vec3(toHealpixFrame(unit)));
-    gOccluderSine[j] = min(1.0, ratio);
+    if (!sphereCap(j, origin, gOccluderAxis[j], gOccluderSine[j])) continue;
     slots |= 1u << j;
   }
   for (uint k = 0u; k < scene.planeCount; ++k) {
-    GpuPlane p = planes[k];
-    precise vec3 rel = origin - p.point;
-    float side = dot3(rel, p.normal);
-    vec3 below = side >= 0.0 ? -p.normal : p.normal;
-    gOccluderAxis[capped + k] = normalize3(vec3(toHealpixFrame(below)));
+    gOccluderAxis[capped + k] = planeCapAxis(k, origin);
     gOccluderSine[capped + k] = 1.0;
     slots |= 1u << (capped + k);
   }

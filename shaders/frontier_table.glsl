@@ -174,21 +174,11 @@ void frontierCaps(vec3 position, vec3 normal) {
   precise vec3 origin = offsetRayOrigin(position, normal);
   const uint capped = capSpheres(origin, normal);
   for (uint j = 0u; j < capped; ++j) {
-    GpuSphere sp = spheres[capSphere(j)];
-    precise vec3 d = sp.center - origin;
-    precise float dist = length3(d);
-    if (!(dist > 0.0)) continue;
-    precise vec3 unit = d / dist;
-    precise float ratio = sp.radius / dist;
-    frontierAddCap(j, normalize3(vec3(toHealpixFrame(unit))), min(1.0, ratio));
+    vec3 axis;
+    float sine;
+    if (sphereCap(j, origin, axis, sine)) frontierAddCap(j, axis, sine);
   }
-  for (uint k = 0u; k < scene.planeCount; ++k) {
-    GpuPlane p = planes[k];
-    precise vec3 rel = origin - p.point;
-    float side = dot3(rel, p.normal);
-    vec3 below = side >= 0.0 ? -p.normal : p.normal;
-    frontierAddCap(capped + k, normalize3(vec3(toHealpixFrame(below))), 1.0);
-  }
+  for (uint k = 0u; k < scene.planeCount; ++k) frontierAddCap(capped + k, planeCapAxis(k, origin), 1.0);
 }
 
 // A cap's thresholds at a level (LightCap::cosInside, cosOutside).

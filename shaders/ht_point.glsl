@@ -262,21 +262,13 @@ void htInit(vec3 position, vec3 normal, vec3 wo, GpuMaterial material) {
     precise vec3 origin = offsetRayOrigin(position, normal);
     const uint capped = capSpheres(origin, normal);
     for (uint j = 0u; j < capped; ++j) {
-      GpuSphere sp = spheres[capSphere(j)];
-      precise vec3 d = sp.center - origin;
-      precise float dist = length3(d);
-      precise float ratio = sp.radius / dist;
-      precise float angle = dist > 0.0 ? asin(min(1.0, ratio)) - kHtCapMargin : 0.0;
-      precise vec3 unit = d / dist;
-      htSetCap(j, normalize3(vec3(toHealpixFrame(unit))), angle);
+      vec3 axis;
+      float sine;
+      bool away = sphereCap(j, origin, axis, sine);
+      precise float angle = away ? asin(sine) - kHtCapMargin : 0.0;
+      htSetCap(j, axis, angle);
     }
-    for (uint k = 0u; k < scene.planeCount; ++k) {
-      GpuPlane p = planes[k];
-      precise vec3 rel = origin - p.point;
-      float side = dot3(rel, p.normal);
-      vec3 below = side >= 0.0 ? -p.normal : p.normal;
-      htSetCap(capped + k, normalize3(vec3(toHealpixFrame(below))), kHtPlaneCapAngle);
-    }
+    for (uint k = 0u; k < scene.planeCount; ++k) htSetCap(capped + k, planeCapAxis(k, origin), kHtPlaneCapAngle);
     // Slots past the chosen spheres' (fewer than the scene's when some lie below the horizon) block nothing.
     for (uint j = capped + scene.planeCount; j < kCapSlots; ++j) htSetCap(j, vec3(0.0), 0.0);
   }
