@@ -1116,6 +1116,17 @@ std::vector<StressComparison> compareOnStressScenes(GpuRenderer& gpu, Method met
   return out;
 }
 
+// The agreement the product methods keep on every stress scene: the CPU's
+// count of directions at every pixel and its shaded pixels, its value
+// within 1e-4 relative but for at most 2 % of the pixels, the images' sums
+// within 1e-4.
+void expectStressAgreement(const StressComparison& c) {
+  EXPECT_EQ(c.countDiffers, 0u) << c.scene;
+  EXPECT_EQ(c.gpuShaded, c.cpuShaded) << c.scene;
+  EXPECT_LE(c.valueDiffers, c.pixels / 50) << c.scene;
+  EXPECT_LT(std::fabs(c.gpuSum - c.cpuSum), 1e-4 * c.cpuSum) << c.scene;
+}
+
 // ht-frontier: every pixel draws the CPU's count of directions, and the
 // table nodes agree in sum; the CPU's value within 1e-4 relative but for at
 // most 2 % of the pixels, where an ulp of a direction (the shader's float
@@ -1126,11 +1137,8 @@ TEST(GpuFrontier, StressScenesMatchTheCpu) {
   GpuRenderer gpu(gpuOptions());
   if (!gpu.float64()) GTEST_SKIP() << "device without shaderFloat64";
   for (const StressComparison& c : compareOnStressScenes(gpu, Method::HtFrontier, 16)) {
-    EXPECT_EQ(c.countDiffers, 0u) << c.scene;
+    expectStressAgreement(c);
     EXPECT_EQ(c.gpuNodes, c.cpuNodes) << c.scene;
-    EXPECT_EQ(c.gpuShaded, c.cpuShaded) << c.scene;
-    EXPECT_LE(c.valueDiffers, c.pixels / 50) << c.scene;
-    EXPECT_LT(std::fabs(c.gpuSum - c.cpuSum), 1e-4 * c.cpuSum) << c.scene;
   }
 }
 
@@ -1141,12 +1149,7 @@ TEST(GpuFrontier, StressScenesMatchTheCpu) {
 TEST(GpuCut, StressScenesMatchTheCpu) {
   GpuRenderer gpu(gpuOptions());
   if (!gpu.float64()) GTEST_SKIP() << "device without shaderFloat64";
-  for (const StressComparison& c : compareOnStressScenes(gpu, Method::HtCut, 16)) {
-    EXPECT_EQ(c.countDiffers, 0u) << c.scene;
-    EXPECT_EQ(c.gpuShaded, c.cpuShaded) << c.scene;
-    EXPECT_LE(c.valueDiffers, c.pixels / 50) << c.scene;
-    EXPECT_LT(std::fabs(c.gpuSum - c.cpuSum), 1e-4 * c.cpuSum) << c.scene;
-  }
+  for (const StressComparison& c : compareOnStressScenes(gpu, Method::HtCut, 16)) expectStressAgreement(c);
 }
 
 // Every batch weighs the cut again at its pixel's point: batches of three
@@ -1171,12 +1174,7 @@ TEST(GpuRestir, StressScenesMatchTheCpu) {
   GpuRenderer gpu(gpuOptions());
   if (!gpu.float64()) GTEST_SKIP() << "device without shaderFloat64";
   for (Method m : {Method::Restir, Method::RestirBiased})
-    for (const StressComparison& c : compareOnStressScenes(gpu, m, 16)) {
-      EXPECT_EQ(c.countDiffers, 0u) << c.scene;
-      EXPECT_EQ(c.gpuShaded, c.cpuShaded) << c.scene;
-      EXPECT_LE(c.valueDiffers, c.pixels / 50) << c.scene;
-      EXPECT_LT(std::fabs(c.gpuSum - c.cpuSum), 1e-4 * c.cpuSum) << c.scene;
-    }
+    for (const StressComparison& c : compareOnStressScenes(gpu, m, 16)) expectStressAgreement(c);
 }
 
 // The seed's methods accept the CPU's candidates on every stress scene too
