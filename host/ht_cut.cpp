@@ -40,6 +40,29 @@ std::vector<glm::vec3> firstMoments(const Environment& env, const HtGeometry& g,
   return moment;
 }
 
+// The tree's chroma down to `levels` (at most the map's order): each node's
+// radiance over its luminance, both summed in double over its leaves (0
+// where it has no light).
+std::vector<glm::vec3> nodeChroma(const Environment& env, int levels) {
+  const uint64_t leaves = uint64_t(1) << (2 * (env.order - levels));
+  std::vector<glm::dvec4> below(size_t(MaxAvgTree::levelSize(levels)), glm::dvec4(0.0));
+  for (uint64_t i = 0; i < below.size(); ++i)
+    for (uint64_t l = i * leaves; l < (i + 1) * leaves; ++l)
+      below[i] += glm::dvec4(glm::dvec3(env.radiance[l]), double(luminance(env.radiance[l])));
+  std::vector<glm::vec3> chroma(size_t(MaxAvgTree::levelOffset(levels + 1)));
+  for (int level = levels;; --level) {
+    for (uint64_t i = 0; i < below.size(); ++i)
+      chroma[MaxAvgTree::levelOffset(level) + i] =
+          below[i].w > 0.0 ? glm::vec3(glm::dvec3(below[i]) / below[i].w) : glm::vec3(0.0f);
+    if (level == 0) break;
+    std::vector<glm::dvec4> above(below.size() / 4);
+    for (uint64_t i = 0; i < above.size(); ++i)
+      above[i] = ((below[4 * i] + below[4 * i + 1]) + below[4 * i + 2]) + below[4 * i + 3];
+    below = std::move(above);
+  }
+  return chroma;
+}
+
 }  // namespace
 
 EnvCut buildEnvCut(const Environment& env, const HtGeometry& g, int nodes) {
@@ -48,6 +71,7 @@ EnvCut buildEnvCut(const Environment& env, const HtGeometry& g, int nodes) {
   EnvCut cut;
   cut.momentLevel = std::min(kCutMomentLevel, order);
   cut.moment = firstMoments(env, g, cut.momentLevel);
+  cut.chroma = nodeChroma(env, cut.momentLevel);
   for (int level = 0; level <= order; ++level) {
     const double omega = healpix::pixelSolidAngle(level);
     cut.discSin[size_t(level)] = cutDiscSin(level);
@@ -460,22 +484,39 @@ void CutDensity::firstChildWeights(uint32_t k, float (&w)[4]) const {
   environmentWhereZero(env_->tree, MaxAvgTree::levelOffset(c.level + 1) + 4 * c.node, w);
 }
 
-EnvSample CutDensity::sample(uint32_t k, glm::dvec2 u) const {
-  const CutNode& c = point_->cut.nodes[k];
+EnvSample CutDensity::sample(uint32_t k, glm::dvec2 u, glm::dvec3& colourDrift) const {
+  const EnvCut& cut = point_->cut;
+  const CutNode& c = cut.nodes[k];
   double p = nodeProbability(k);
   uint64_t node = c.node;
   const int below = std::max(c.level, productLevel_);
+  glm::dvec3 drift(0.0);
+  glm::vec3 chroma = c.chroma;
   for (int l = c.level + 1; l <= below; ++l) {
     float w[4], prob;
     if (l == c.level + 1)
       firstChildWeights(k, w);
     else
       childWeights(l, node, w);
+    // The chroma the step draws on average, less the chroma of the child it draws.
+    const uint64_t first = MaxAvgTree::levelOffset(l) + 4 * node;
+    const double sum = ((double(w[0]) + double(w[1])) + double(w[2])) + double(w[3]);
+    glm::dvec3 expected(0.0);
+    for (uint64_t j = 0; j < 4; ++j) expected += (double(w[j]) / sum) * glm::dvec3(cut.chroma[first + j]);
     node = 4 * node + uint64_t(pickRescaled4(w, u.x, prob));
+    chroma = cut.chroma[MaxAvgTree::levelOffset(l) + node];
+    drift += expected - glm::dvec3(chroma);
     p *= double(prob);
   }
   EnvSample es = sampleEnvironmentBelow(*env_, env_->tree, below, node, u);
+  // Below `below` the average tree draws the pixels by luminance, so the
+  // pixel's chroma has the node's as its mean.
+  if (es.pdf > 0.0f) {
+    const glm::vec3 radiance = env_->radiance[es.pixel];
+    drift += glm::dvec3(chroma) - glm::dvec3(radiance / luminance(radiance));
+  }
   es.pdf = float(p * double(es.pdf));
+  colourDrift = drift;
   return es;
 }
 
@@ -563,9 +604,10 @@ glm::vec3 estimateHtCut(const Scene& scene, const ShadingPoint& sp, const CutOpt
   // 0, and the BRDF's directions dimension 1.
   for (int i = 0; i < cutCount; ++i) {
     const uint32_t k = density->node((double(i) + offset) / double(cutCount));
-    if (colourControl) sum += colourScale * glm::dvec3(colourMean - cut.nodes[k].chroma);
     sampler.startSample(uint32_t(i));
-    const EnvSample es = density->sample(k, sampler.get2DPrecise());
+    glm::dvec3 drift;
+    const EnvSample es = density->sample(k, sampler.get2DPrecise(), drift);
+    if (colourControl) sum += colourScale * (glm::dvec3(colourMean - cut.nodes[k].chroma) + drift);
     if (!(es.pdf > 0.0f)) continue;
     const float pb = bWeight > 0.0f ? bsdfPdf(bm, sh.woLocal, sh.frame.toLocal(es.dir)) : 0.0f;
     sum += glm::dvec3(sh.reflected(es.dir, env.radiance[es.pixel]) / (cWeight * es.pdf + bWeight * pb));

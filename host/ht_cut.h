@@ -118,6 +118,9 @@ struct EnvCut {
   // of its light, luminance x solid angle x centre summed over its leaves
   // (HEALPix frame).
   std::vector<glm::vec3> moment;
+  // Per tree node down to momentLevel: the chroma of its light (its
+  // radiance over its luminance, summed over its leaves).
+  std::vector<glm::vec3> chroma;
   std::array<float, 32> discSin{};    // cutDiscSin per level
   std::array<float, 32> discChord{};  // the chord radius of that disc
   std::array<float, 32> omega{};      // a node's solid angle per level
@@ -234,7 +237,10 @@ class CutDensity {
   uint32_t node(double x) const;
   double nodeProbability(uint32_t k) const;
   // A direction below node k from u; its pdf: p_c's solid-angle density.
-  EnvSample sample(uint32_t k, glm::dvec2 u) const;
+  // colourDrift: over the descent's steps, the chroma each step draws on
+  // average less that of the child it drew, and the last node's chroma
+  // less the pixel's; each term has mean 0 given the steps before it.
+  EnvSample sample(uint32_t k, glm::dvec2 u, glm::dvec3& colourDrift) const;
   // p_c of a direction in `pixel` (solid angle).
   float pdf(uint64_t pixel) const;
 

@@ -271,9 +271,9 @@ struct GpuScene {
   uint restirNeighbours;  // k: neighbours per round
   uint restirRadius;      // neighbours within this many pixels in x and y
   uint restirRounds;      // r: rounds of spatial reuse
-  // ht-cut (host/ht_cut.h): cutTree: two vec4 per tree node down to the
+  // ht-cut (host/ht_cut.h): cutTree: three vec4 per tree node down to the
   // descent's last level, min(cutProductLevel, cutMomentLevel), in the
-  // tree's layout (centre, power; first moment, 0); cutRecord: four vec4
+  // tree's layout (centre, power; first moment, 0; chroma, 0); cutRecord: four vec4
   // per node a point weighs in its loop over the cut, the K nodes then each
   // one's four children (centre, sine of its disc's radius; moment, power;
   // chroma, cos of its bounding radius; its sine, the disc's chord radius,

@@ -39,7 +39,7 @@ CutNodeData cutRecord(uint r) {
 }
 // The same from the tree's records, for the nodes below the cut's.
 CutNodeData cutTreeNode(uint level, uint at) {
-  vec4 a = cutTreeTexel(2u * at), b = cutTreeTexel(2u * at + 1u);
+  vec4 a = cutTreeTexel(3u * at), b = cutTreeTexel(3u * at + 1u);
   return CutNodeData(a.xyz, scene.cutDiscSin[level], b.xyz, a.w, vec3(0.0), scene.cutLevelCos[level],
                      scene.cutLevelSin[level], scene.cutDiscChord[level], level, at);
 }
@@ -381,11 +381,6 @@ uint cutSamples(Shading sh, vec3 position, vec3 normal, uint n, uint begin, uint
     precise float target = float(x) * total;
     uint k = cutFind(target);
     CutNodeData cn = cutRecord(k);
-    if (colourControl) {
-      precise vec3 dc = colourMean - cn.chroma;
-      precise accvec3 cv = sum + colourScale * accvec3(dc);
-      sum = cv;
-    }
     samplerStart(smp, j);
 #if HT_FP64
     dvec2 u = samplerNext2DPrecise(smp);
@@ -398,15 +393,42 @@ uint cutSamples(Shading sh, vec3 position, vec3 normal, uint n, uint begin, uint
     uint node = cn.at - levelOffset(level);
     uint below = max(level, productLevel);
     hreal ux = u.x;
+    // CutDensity::sample's colour drift: each step's expected chroma less
+    // the drawn child's, then the last node's less the pixel's.
+    precise accvec3 drift = accvec3(0.0);
+    vec3 chroma = cn.chroma;
     for (uint l = level + 1u; l <= below; ++l) {
       float cw[4];
       cutChildWeights(l, node, cw);
+      uint first = levelOffset(l) + 4u * node;
+      precise hreal cwSum = ((hreal(cw[0]) + hreal(cw[1])) + hreal(cw[2])) + hreal(cw[3]);
+      precise accvec3 expected = accvec3(0.0);
+      vec3 cc[4];
+      [[unroll]] for (uint i = 0u; i < 4u; ++i) {
+        cc[i] = cutTreeTexel(3u * (first + i) + 2u).xyz;
+        precise hreal share = hreal(cw[i]) / cwSum;
+        expected = expected + share * accvec3(cc[i]);
+      }
       float prob;
-      node = 4u * node + cutPick(cw, ux, prob);
+      uint pick = cutPick(cw, ux, prob);
+      node = 4u * node + pick;
+      chroma = cc[0];
+      [[unroll]] for (uint i = 1u; i < 4u; ++i) chroma = i == pick ? cc[i] : chroma;
+      drift = drift + (expected - accvec3(chroma));
       p *= hreal(prob);
     }
     EnvSample es = sampleEnvironmentBelow(below, node, ux, u.y);
     precise hreal pcH = p * hreal(es.pdf);
+    if (es.pdf > 0.0) {
+      vec3 radiance = envRadiance(es.pixel);
+      precise vec3 pixelChroma = radiance / luminance(radiance);
+      drift = drift + (accvec3(chroma) - accvec3(pixelChroma));
+    }
+    if (colourControl) {
+      precise vec3 dc = colourMean - cn.chroma;
+      precise accvec3 cv = sum + colourScale * (accvec3(dc) + drift);
+      sum = cv;
+    }
     float pc = float(pcH);
     if (!(pc > 0.0)) continue;
     float pb = plan.bWeight > 0.0 ? bsdfPdf(plan.bm, sh.woLocal, toLocal(sh.frame, es.dir)) : 0.0;

@@ -40,8 +40,9 @@ void cutMemory(const MemoryInputs& in, MethodMemory& m) {
   const uint64_t moments = MaxAvgTree::levelOffset(std::min(in.envOrder, kCutMomentLevel) + 1);
   const uint64_t lookup = MaxAvgTree::levelSize(std::min(in.envOrder, kCutMaxLevel));
   m.table("HT node geometry", nodes * 20);
-  m.table("ht-cut first moments and lookup", moments * 12 + lookup * 4);
-  if (in.gpu) m.gpu += nodes * 20 + moments * 12 + lookup * 4;
+  m.table("ht-cut first moments, chroma and lookup", moments * 24 + lookup * 4);
+  // On the device the descent's nodes take three RGBA texels each.
+  if (in.gpu) m.gpu += nodes * 20 + moments * 48 + lookup * 4;
 }
 
 // Per direction a descent of four children a level down to the product

@@ -47,16 +47,17 @@ class CutGpuState : public GpuMethodState {
           for (uint64_t j = 0; j < 4; ++j)
             record(K + 4 * k + j, MaxAvgTree::levelOffset(n.level + 1) + 4 * n.node + j, glm::vec3(0.0f));
       }
-      // The descent's nodes (GpuScene::cutTree): each one's CutLight in two
-      // texels, so that a child costs two fetches.
+      // The descent's nodes (GpuScene::cutTree): each one's CutLight and
+      // chroma in three texels, so that a child costs three fetches.
       const MaxAvgTree& tree = c.hostScene.environment.tree;
-      std::vector<glm::vec4> nodes(2 * size_t(MaxAvgTree::levelOffset(treeLevel + 1)));
+      std::vector<glm::vec4> nodes(3 * size_t(MaxAvgTree::levelOffset(treeLevel + 1)));
       for (int level = 0; level <= treeLevel; ++level)
         for (uint64_t i = 0; i < MaxAvgTree::levelSize(level); ++i) {
           const uint64_t at = MaxAvgTree::levelOffset(level) + i;
           const CutLight n = cut.light(tree, g, level, at);
-          nodes[2 * at] = glm::vec4(n.centre, n.power);
-          nodes[2 * at + 1] = glm::vec4(n.moment, 0.0f);
+          nodes[3 * at] = glm::vec4(n.centre, n.power);
+          nodes[3 * at + 1] = glm::vec4(n.moment, 0.0f);
+          nodes[3 * at + 2] = glm::vec4(cut.chroma[at], 0.0f);
         }
       tree_ = uploadArray(c.ctx, nodes);
       record_ = uploadArray(c.ctx, records);
