@@ -18,25 +18,34 @@ float cutDiscSin(int level) { return float(std::sin(1.0 / (std::sqrt(3.0) * std:
 
 namespace {
 
-// The tree's first moments down to `levels`, summed in double from the
-// leaves.
-std::vector<glm::vec3> firstMoments(const Environment& env, const HtGeometry& g, int levels) {
-  const int order = env.order;
-  std::vector<glm::dvec3> below(size_t(MaxAvgTree::levelSize(order)));
-  const uint64_t leaves = MaxAvgTree::levelOffset(order);
-  const double omega = healpix::pixelSolidAngle(order);
-  for (uint64_t i = 0; i < below.size(); ++i)
-    below[i] = double(env.tree.avgv[leaves + i]) * omega * glm::dvec3(g.centers[leaves + i]);
-  std::vector<glm::vec3> moment(size_t(MaxAvgTree::levelOffset(levels + 1)));
-  for (int level = order;; --level) {
-    if (level <= levels)
-      for (uint64_t i = 0; i < below.size(); ++i) moment[MaxAvgTree::levelOffset(level) + i] = glm::vec3(below[i]);
-    if (level == 0) break;
-    std::vector<glm::dvec3> above(below.size() / 4);
+// Calls store(level, i, sum) for each node i of `level` and of every level
+// above it: `below` holds the sums of `level`'s nodes, and a node's sum is
+// its four children's.
+template <class T, class Store>
+void sumUpward(std::vector<T> below, int level, Store&& store) {
+  for (;; --level) {
+    for (uint64_t i = 0; i < below.size(); ++i) store(level, i, below[i]);
+    if (level == 0) return;
+    std::vector<T> above(below.size() / 4);
     for (uint64_t i = 0; i < above.size(); ++i)
       above[i] = ((below[4 * i] + below[4 * i + 1]) + below[4 * i + 2]) + below[4 * i + 3];
     below = std::move(above);
   }
+}
+
+// The tree's first moments down to `levels`, summed in double from the
+// leaves.
+std::vector<glm::vec3> firstMoments(const Environment& env, const HtGeometry& g, int levels) {
+  const int order = env.order;
+  std::vector<glm::dvec3> leafMoments(size_t(MaxAvgTree::levelSize(order)));
+  const uint64_t leaves = MaxAvgTree::levelOffset(order);
+  const double omega = healpix::pixelSolidAngle(order);
+  for (uint64_t i = 0; i < leafMoments.size(); ++i)
+    leafMoments[i] = double(env.tree.avgv[leaves + i]) * omega * glm::dvec3(g.centers[leaves + i]);
+  std::vector<glm::vec3> moment(size_t(MaxAvgTree::levelOffset(levels + 1)));
+  sumUpward(std::move(leafMoments), order, [&](int level, uint64_t i, const glm::dvec3& m) {
+    if (level <= levels) moment[MaxAvgTree::levelOffset(level) + i] = glm::vec3(m);
+  });
   return moment;
 }
 
@@ -45,21 +54,14 @@ std::vector<glm::vec3> firstMoments(const Environment& env, const HtGeometry& g,
 // where it has no light).
 std::vector<glm::vec3> nodeChroma(const Environment& env, int levels) {
   const uint64_t leaves = uint64_t(1) << (2 * (env.order - levels));
-  std::vector<glm::dvec4> below(size_t(MaxAvgTree::levelSize(levels)), glm::dvec4(0.0));
-  for (uint64_t i = 0; i < below.size(); ++i)
+  std::vector<glm::dvec4> sums(size_t(MaxAvgTree::levelSize(levels)), glm::dvec4(0.0));
+  for (uint64_t i = 0; i < sums.size(); ++i)
     for (uint64_t l = i * leaves; l < (i + 1) * leaves; ++l)
-      below[i] += glm::dvec4(glm::dvec3(env.radiance[l]), double(luminance(env.radiance[l])));
+      sums[i] += glm::dvec4(glm::dvec3(env.radiance[l]), double(luminance(env.radiance[l])));
   std::vector<glm::vec3> chroma(size_t(MaxAvgTree::levelOffset(levels + 1)));
-  for (int level = levels;; --level) {
-    for (uint64_t i = 0; i < below.size(); ++i)
-      chroma[MaxAvgTree::levelOffset(level) + i] =
-          below[i].w > 0.0 ? glm::vec3(glm::dvec3(below[i]) / below[i].w) : glm::vec3(0.0f);
-    if (level == 0) break;
-    std::vector<glm::dvec4> above(below.size() / 4);
-    for (uint64_t i = 0; i < above.size(); ++i)
-      above[i] = ((below[4 * i] + below[4 * i + 1]) + below[4 * i + 2]) + below[4 * i + 3];
-    below = std::move(above);
-  }
+  sumUpward(std::move(sums), levels, [&](int level, uint64_t i, const glm::dvec4& s) {
+    chroma[MaxAvgTree::levelOffset(level) + i] = s.w > 0.0 ? glm::vec3(glm::dvec3(s) / s.w) : glm::vec3(0.0f);
+  });
   return chroma;
 }
 
