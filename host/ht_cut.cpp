@@ -486,7 +486,7 @@ void CutDensity::firstChildWeights(uint32_t k, float (&w)[4]) const {
   environmentWhereZero(env_->tree, MaxAvgTree::levelOffset(c.level + 1) + 4 * c.node, w);
 }
 
-EnvSample CutDensity::sample(uint32_t k, glm::dvec2 u, glm::dvec3& colourDrift) const {
+EnvSample CutDensity::sample(uint32_t k, glm::dvec2 u, glm::dvec3* colourDrift) const {
   const EnvCut& cut = point_->cut;
   const CutNode& c = cut.nodes[k];
   double p = nodeProbability(k);
@@ -502,23 +502,27 @@ EnvSample CutDensity::sample(uint32_t k, glm::dvec2 u, glm::dvec3& colourDrift) 
       childWeights(l, node, w);
     // The chroma the step draws on average, less the chroma of the child it draws.
     const uint64_t first = MaxAvgTree::levelOffset(l) + 4 * node;
-    const double sum = ((double(w[0]) + double(w[1])) + double(w[2])) + double(w[3]);
     glm::dvec3 expected(0.0);
-    for (uint64_t j = 0; j < 4; ++j) expected += (double(w[j]) / sum) * glm::dvec3(cut.chroma[first + j]);
+    if (colourDrift) {
+      const double sum = ((double(w[0]) + double(w[1])) + double(w[2])) + double(w[3]);
+      for (uint64_t j = 0; j < 4; ++j) expected += (double(w[j]) / sum) * glm::dvec3(cut.chroma[first + j]);
+    }
     node = 4 * node + uint64_t(pickRescaled4(w, u.x, prob));
-    chroma = cut.chroma[MaxAvgTree::levelOffset(l) + node];
-    drift += expected - glm::dvec3(chroma);
+    if (colourDrift) {
+      chroma = cut.chroma[MaxAvgTree::levelOffset(l) + node];
+      drift += expected - glm::dvec3(chroma);
+    }
     p *= double(prob);
   }
   EnvSample es = sampleEnvironmentBelow(*env_, env_->tree, below, node, u);
   // Below `below` the average tree draws the pixels by luminance, so the
   // pixel's chroma has the node's as its mean.
-  if (es.pdf > 0.0f) {
+  if (colourDrift && es.pdf > 0.0f) {
     const glm::vec3 radiance = env_->radiance[es.pixel];
     drift += glm::dvec3(chroma) - glm::dvec3(radiance / luminance(radiance));
   }
   es.pdf = float(p * double(es.pdf));
-  colourDrift = drift;
+  if (colourDrift) *colourDrift = drift;
   return es;
 }
 
@@ -607,8 +611,8 @@ glm::vec3 estimateHtCut(const Scene& scene, const ShadingPoint& sp, const CutOpt
   for (int i = 0; i < cutCount; ++i) {
     const uint32_t k = density->node((double(i) + offset) / double(cutCount));
     sampler.startSample(uint32_t(i));
-    glm::dvec3 drift;
-    const EnvSample es = density->sample(k, sampler.get2DPrecise(), drift);
+    glm::dvec3 drift(0.0);
+    const EnvSample es = density->sample(k, sampler.get2DPrecise(), colourControl ? &drift : nullptr);
     if (colourControl) sum += colourScale * (glm::dvec3(colourMean - cut.nodes[k].chroma) + drift);
     if (!(es.pdf > 0.0f)) continue;
     const float pb = bWeight > 0.0f ? bsdfPdf(bm, sh.woLocal, sh.frame.toLocal(es.dir)) : 0.0f;

@@ -237,10 +237,11 @@ class CutDensity {
   uint32_t node(double x) const;
   double nodeProbability(uint32_t k) const;
   // A direction below node k from u; its pdf: p_c's solid-angle density.
-  // colourDrift: over the descent's steps, the chroma each step draws on
-  // average less that of the child it drew, and the last node's chroma
-  // less the pixel's; each term has mean 0 given the steps before it.
-  EnvSample sample(uint32_t k, glm::dvec2 u, glm::dvec3& colourDrift) const;
+  // colourDrift, where asked for: over the descent's steps, the chroma each
+  // step draws on average less that of the child it drew, and the last
+  // node's chroma less the pixel's; each term has mean 0 given the steps
+  // before it.
+  EnvSample sample(uint32_t k, glm::dvec2 u, glm::dvec3* colourDrift = nullptr) const;
   // p_c of a direction in `pixel` (solid angle).
   float pdf(uint64_t pixel) const;
 

@@ -401,25 +401,29 @@ uint cutSamples(Shading sh, vec3 position, vec3 normal, uint n, uint begin, uint
       float cw[4];
       cutChildWeights(l, node, cw);
       uint first = levelOffset(l) + 4u * node;
-      precise hreal cwSum = ((hreal(cw[0]) + hreal(cw[1])) + hreal(cw[2])) + hreal(cw[3]);
       precise accvec3 expected = accvec3(0.0);
       vec3 cc[4];
-      [[unroll]] for (uint i = 0u; i < 4u; ++i) {
-        cc[i] = cutTreeTexel(3u * (first + i) + 2u).xyz;
-        precise hreal share = hreal(cw[i]) / cwSum;
-        expected = expected + share * accvec3(cc[i]);
+      if (colourControl) {
+        precise hreal cwSum = ((hreal(cw[0]) + hreal(cw[1])) + hreal(cw[2])) + hreal(cw[3]);
+        [[unroll]] for (uint i = 0u; i < 4u; ++i) {
+          cc[i] = cutTreeTexel(3u * (first + i) + 2u).xyz;
+          precise hreal share = hreal(cw[i]) / cwSum;
+          expected = expected + share * accvec3(cc[i]);
+        }
       }
       float prob;
       uint pick = cutPick(cw, ux, prob);
       node = 4u * node + pick;
-      chroma = cc[0];
-      [[unroll]] for (uint i = 1u; i < 4u; ++i) chroma = i == pick ? cc[i] : chroma;
-      drift = drift + (expected - accvec3(chroma));
+      if (colourControl) {
+        chroma = cc[0];
+        [[unroll]] for (uint i = 1u; i < 4u; ++i) chroma = i == pick ? cc[i] : chroma;
+        drift = drift + (expected - accvec3(chroma));
+      }
       p *= hreal(prob);
     }
     EnvSample es = sampleEnvironmentBelow(below, node, ux, u.y);
     precise hreal pcH = p * hreal(es.pdf);
-    if (es.pdf > 0.0) {
+    if (colourControl && es.pdf > 0.0) {
       vec3 radiance = envRadiance(es.pixel);
       precise vec3 pixelChroma = radiance / luminance(radiance);
       drift = drift + (accvec3(chroma) - accvec3(pixelChroma));

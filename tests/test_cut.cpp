@@ -130,8 +130,7 @@ TEST(Cut, DensityMatchesItsSamples) {
     auto sample = [&](Rng& rng) {
       const double x = rng.next();
       const glm::vec2 u = rng.next2();
-      glm::dvec3 drift;
-      const EnvSample es = p.density.sample(p.density.node(x), glm::dvec2(u), drift);
+      const EnvSample es = p.density.sample(p.density.node(x), glm::dvec2(u));
       if (env.pixelOf(es.dir) != es.pixel) ++wrongLeaf;
       worstPdf = std::max(worstPdf, std::abs(double(es.pdf) / double(p.density.pdf(es.pixel)) - 1.0));
       return glm::dvec3(env.toHealpixFrame(es.dir));
@@ -170,7 +169,7 @@ TEST(Cut, ColourDriftHasMeanZero) {
     for (int n = 0; n < kSamples; ++n) {
       const uint32_t k = p.density.node(rng.next());
       glm::dvec3 drift;
-      const EnvSample es = p.density.sample(k, glm::dvec2(rng.next2()), drift);
+      const EnvSample es = p.density.sample(k, glm::dvec2(rng.next2()), &drift);
       ASSERT_GT(es.pdf, 0.0f);
       sum += drift;
       squares += drift * drift;
