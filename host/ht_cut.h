@@ -156,7 +156,7 @@ inline float cutLobeShare(const Material& m, float rho) {
 }
 
 struct CutOptions {
-  float minPartialVisibility = 0.1f;  // a partly covered node's visible share, at least
+  float minPartialVisibility = 0.03f;  // a partly covered node's visible share, at least
   int productLevel = 6;               // children by their weights down to this level
   bool visibility = true;             // the caps in the weights
   bool colourControl = true;          // the control variate on colour
