@@ -119,7 +119,7 @@
 // this many.
 #define HT_CUT_MAX_LEVEL 7
 #define HT_CUT_MAX_NODES 512
-#define HT_CUT_HORIZON_FLOOR 0.0625  // kCutHorizonFloor (exact in float)
+#define HT_CUT_HORIZON_FLOOR 0.015625  // kCutHorizonFloor (exact in float)
 #define HT_CUT_MIN_SHARE 0.125       // kCutMinShare (exact in float)
 // ht-cut's caps per point at most: the first this many occluder slots (of
 // HT_MAX_CAPS), the largest spheres in what the planes leave, then the planes.
