@@ -157,9 +157,9 @@ inline float cutLobeShare(const Material& m, float rho) {
 
 struct CutOptions {
   float minPartialVisibility = 0.03f;  // a partly covered node's visible share, at least
-  int productLevel = 6;               // children by their weights down to this level
-  bool visibility = true;             // the caps in the weights
-  bool colourControl = true;          // the control variate on colour
+  int productLevel = 6;                // children by their weights down to this level
+  bool visibility = true;              // the caps in the weights
+  bool colourControl = true;           // the control variate on colour
 };
 
 // cutLobeShare's rho for `options`: the bounding radius (sine) of the
