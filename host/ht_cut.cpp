@@ -577,7 +577,7 @@ glm::vec3 estimateHtCut(const Scene& scene, const ShadingPoint& sp, const CutOpt
     const float lobeLight = reflectance * mirrorRadiance;
     share = std::clamp(lobeLight / (lobeLight + total), kCutMinShare, 1.0f - kCutMinShare);
   } else if (point.lobeOnly) {
-    share = cutLobeShare(mat, cutLobeRadius(options, cut, g));
+    share = cutLobeShare(mat, cutLobeSpan(options, cut, g));
   }
   // Fixed counts, at least one of each technique that has a share; one
   // direction picks its technique with the shares as probabilities.

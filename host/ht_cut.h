@@ -147,7 +147,7 @@ inline int cutNodesFor(int nodes, int n) {
 // A lobe alone's share of its n directions drawn from the BRDF,
 // rho / (rho + w) within [1/4, 3/4]: w the lobe's width (GGX alpha; Phong
 // 1 / (2 sqrt(exponent + 1)), its spread about the mirror direction being
-// twice GGX's alpha's), rho the bounding radius of the descent's finest
+// twice GGX's alpha's), rho the bounding diameter of the descent's finest
 // nodes. The cut's directions follow a lobe as far as its nodes resolve it;
 // a narrower one is left more to the BRDF.
 inline float cutLobeShare(const Material& m, float rho) {
@@ -162,10 +162,11 @@ struct CutOptions {
   bool colourControl = true;           // the control variate on colour
 };
 
-// cutLobeShare's rho for `options`: the bounding radius (sine) of the
-// descent's finest nodes.
-inline float cutLobeRadius(const CutOptions& options, const EnvCut& cut, const HtGeometry& g) {
-  return g.levelSinRadius[size_t(std::clamp(options.productLevel, 0, cut.momentLevel))];
+// cutLobeShare's rho for `options`: twice the bounding radius (sine) of
+// the descent's finest nodes, the span a lobe must reach across to be
+// resolved by more than one of them.
+inline float cutLobeSpan(const CutOptions& options, const EnvCut& cut, const HtGeometry& g) {
+  return 2.0f * g.levelSinRadius[size_t(std::clamp(options.productLevel, 0, cut.momentLevel))];
 }
 
 struct MethodOptions;

@@ -287,7 +287,7 @@ struct GpuScene {
   uint cutMomentLevel;
   uint cutProductLevel;  // CutOptions::productLevel, at most cutMomentLevel
   uint cutFlags;         // HT_CUT_VISIBILITY, HT_CUT_COLOUR_CONTROL
-  float cutLobeRadius;   // cutLobeShare's rho
+  float cutLobeSpan;     // cutLobeShare's rho
   float cutMinPartial;   // CutOptions::minPartialVisibility
   float cutCapCosMargin, cutCapSinMargin;  // cos and sin of kCapMargin
   uint cutReserved;

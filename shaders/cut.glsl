@@ -327,7 +327,7 @@ CutPlan cutPlan(Shading sh, float total, uint n, uint rngState) {
     // cutLobeShare.
     GpuMaterial m = sh.material;
     precise float width = m.type == HT_MATERIAL_PHONG ? 0.5 / sqrt(m.exponent + 1.0) : m.alpha;
-    precise float rho = scene.cutLobeRadius;
+    precise float rho = scene.cutLobeSpan;
     precise float ratio = rho / (rho + width);
     share = clamp(ratio, 0.25, 0.75);
   }

@@ -74,7 +74,7 @@ class CutGpuState : public GpuMethodState {
     gs.cutMomentLevel = uint32_t(cut.momentLevel);
     gs.cutProductLevel = uint32_t(std::max(options.productLevel, 0));
     gs.cutFlags = (options.visibility ? HT_CUT_VISIBILITY : 0u) | (options.colourControl ? HT_CUT_COLOUR_CONTROL : 0u);
-    gs.cutLobeRadius = cutLobeRadius(options, cut, g);
+    gs.cutLobeSpan = cutLobeSpan(options, cut, g);
     gs.cutMinPartial = options.minPartialVisibility;
     gs.cutCapCosMargin = std::cos(kCapMargin);
     gs.cutCapSinMargin = std::sin(kCapMargin);
