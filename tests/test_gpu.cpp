@@ -789,7 +789,7 @@ size_t differingPixels(const GpuRenderResult& a, const GpuRenderResult& b) {
 
 // The large arrays read through texel views or through device addresses
 // (maps too large for the views): the same images and counts.
-TEST(GpuRenderTiles, TexelViewsAndDeviceAddressesGiveTheSameImage) {
+TEST(GpuRenderTilesSlow, TexelViewsAndDeviceAddressesGiveTheSameImage) {
   GpuOptions addresses = gpuOptions();
   addresses.texelViews = false;
   GpuRenderer a(gpuOptions()), b(addresses);
@@ -1133,7 +1133,7 @@ void expectStressAgreement(const StressComparison& c) {
 // cos and sin) moves it in a lobe (mirror-ggx's alpha 0.01 turns that into
 // 5e-4) and, rarely, by more (one pixel of grazing-view by 5 %); the
 // images' sums within 1e-4.
-TEST(GpuFrontier, StressScenesMatchTheCpu) {
+TEST(GpuFrontierSlow, StressScenesMatchTheCpu) {
   GpuRenderer gpu(gpuOptions());
   if (!gpu.float64()) GTEST_SKIP() << "device without shaderFloat64";
   for (const StressComparison& c : compareOnStressScenes(gpu, Method::HtFrontier, 16)) {
