@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates docs/report/ for the default settings (about 18 minutes on 2 cores):
+# Regenerates docs/report/ for the default settings (about 30 minutes on 2 cores):
 #   1. tools/bench.py on data/scenes/spheres.json: every method at 4/16/64/256
 #      spp on the cpu, and on the gpu (lavapipe here) every method the GPU path
 #      has, at $GPU_SPP; each point with the stratified and the independent
@@ -7,7 +7,7 @@
 #   2. the variance floor: oracle against ht-frontier, ht-cut, ht-vis, ht and mis at 16 spp, side by
 #      side in one run (oracle is slow: 16 spp only);
 #   3. tools/bench.py on every data/scenes/stress/*.json at one spp on the cpu
-#      and lavapipe (the report carries each method's relMSE to equal time on
+#      and lavapipe, the fastest of $STRESS_RUNS runs (the report carries each method's relMSE to equal time on
 #      the cpu, and gives every method's efficiency against mis on both);
 #   4. tools/scaling.py: render time against spp, environment Nside and image
 #      size; the environment stage split into load / resample / trees for a
@@ -44,6 +44,7 @@ STRESS_WIDTH=${STRESS_WIDTH:-80}
 STRESS_HEIGHT=${STRESS_HEIGHT:-40}
 STRESS_SPP=${STRESS_SPP:-16}
 STRESS_REF_SPP=${STRESS_REF_SPP:-1024}
+STRESS_RUNS=${STRESS_RUNS:-3}    # their renders take milliseconds: the fastest of several
 SCALING_METHODS=${SCALING_METHODS:-mis,ht-vis,ht-frontier,ht-cut}
 
 start=$(date +%s)
@@ -72,7 +73,7 @@ $PY tools/bench.py --htrender "$H" --scene data/scenes/spheres.json --device cpu
 stamp "bench: stress scenes ${STRESS_WIDTH}x${STRESS_HEIGHT}, ${STRESS_SPP} spp"
 stress=()
 for s in data/scenes/stress/*.json; do stress+=(--scene "$s"); done
-$PY tools/bench.py --htrender "$H" "${stress[@]}" --device "$DEVICES" --spp "$STRESS_SPP" --runs 1 \
+$PY tools/bench.py --htrender "$H" "${stress[@]}" --device "$DEVICES" --spp "$STRESS_SPP" --runs "$STRESS_RUNS" \
   --width "$STRESS_WIDTH" --height "$STRESS_HEIGHT" --ref-spp "$STRESS_REF_SPP" --out "$OUT/stress"
 
 stamp "scaling"

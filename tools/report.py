@@ -284,7 +284,7 @@ def findings(rows):
     return " ".join(out)
 
 
-def efficiency_table(rows, spp=16, device="cpu"):
+def efficiency_table(rows, spp=16, device="cpu", timing=""):
     """Every method's efficiency against mis's at one spp (16, or the largest below it) on one device, a column
     per scene."""
     spps = {r["spp"] for r in rows if r.get("device", "cpu") == device}
@@ -299,8 +299,8 @@ def efficiency_table(rows, spp=16, device="cpu"):
     name = "the cpu" if device == "cpu" else "lavapipe" if device == "gpu" else device
     md = [f"## Efficiency against `mis` at {spp} spp on {name}", "",
           f"1 / (relMSE x time) of each method divided by `mis`'s, both at {spp} spp on {name}, measured side by "
-          "side in one run per scene: above 1 is better than `mis` at equal time. **bold**: the best unbiased "
-          "method of the scene.", "",
+          f"side in one run per scene{timing}: above 1 is better than `mis` at equal time. **bold**: the best "
+          "unbiased method of the scene.", "",
           "| method | " + " | ".join(scenes) + " |", "|---|" + "---|" * len(scenes)]
     ratio = {}
     for s in scenes:
@@ -706,8 +706,10 @@ def main():
         srows = [r for r in rows if r["scene"] == scene]
         md += scene_section(scene, info, srows, bench_dir, args.htrender, tmp, outdir, bench.get("skipped", []))
     stress = json.loads((Path(args.stress) / "results.json").read_text()) if args.stress else None
-    md += efficiency_table(rows + (stress["results"] if stress else []))
-    md += efficiency_table(rows + (stress["results"] if stress else []), device="gpu")
+    timing = (f" (times the fastest of {bench['runs']} runs on spheres.json, of {stress['runs']} on the stress "
+              "scenes)") if stress else ""
+    md += efficiency_table(rows + (stress["results"] if stress else []), timing=timing)
+    md += efficiency_table(rows + (stress["results"] if stress else []), device="gpu", timing=timing)
     md += sampler_section(bench["results"])
     if args.floor:
         md += floor_section(json.loads((Path(args.floor) / "results.json").read_text()))
