@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates docs/report/ for the default settings (about 30 minutes on 2 cores):
+# Regenerates docs/report/ for the default settings (about 40 minutes on 2 cores):
 #   1. tools/bench.py on data/scenes/spheres.json: every method at 4/16/64/256
 #      spp on the cpu, and on the gpu (lavapipe here) every method the GPU path
 #      has, at $GPU_SPP; each point with the stratified and the independent
