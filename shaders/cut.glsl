@@ -242,7 +242,7 @@ uint cutPick(float w[4], inout hreal u, out float prob) {
 // returns their total and the weighted sum of the nodes' chroma.
 float cutWeightsWith(bool withLobe, out vec3 chromaSum) {
   uint K = scene.cutCount;
-  // The nodes' weights (node k's in gCutCum[k + 1]), and a list of those
+  // The nodes' weights (node k's in gCutCum[k + 1]), and the bits of those
   // the horizon or a cap cuts.
   [[unroll]] for (uint w = 0u; w < uint(HT_CUT_MAX_NODES / 32); ++w) gCutRefined[w] = 0u;
   uint refined = 0u;
@@ -255,7 +255,7 @@ float cutWeightsWith(bool withLobe, out vec3 chromaSum) {
       ++refined;
     }
   }
-  // Their children, each lane its own list: llvmpipe runs a loop's body
+  // Their children, each lane its own nodes: llvmpipe runs a loop's body
   // for its SIMD group while any lane is in it, so the group pays the
   // longest list, not every node some lane refines.
   uint word = 0u;
