@@ -7,8 +7,9 @@
 #   2. the variance floor: oracle against ht-frontier, ht-cut, ht-vis, ht and mis at 16 spp, side by
 #      side in one run (oracle is slow: 16 spp only);
 #   3. tools/bench.py on every data/scenes/stress/*.json at one spp on the cpu
-#      and lavapipe, the fastest of $STRESS_RUNS runs (the report carries each method's relMSE to equal time on
-#      the cpu, and gives every method's efficiency against mis on both);
+#      and lavapipe, the fastest of $STRESS_RUNS runs (the report carries each
+#      method's relMSE to equal time on the cpu, and gives every method's
+#      efficiency against mis on both);
 #   4. tools/scaling.py: render time against spp, environment Nside and image
 #      size; the environment stage split into load / resample / trees for a
 #      1024x512 and a generated 8192x4096 map;

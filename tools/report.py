@@ -706,10 +706,13 @@ def main():
         srows = [r for r in rows if r["scene"] == scene]
         md += scene_section(scene, info, srows, bench_dir, args.htrender, tmp, outdir, bench.get("skipped", []))
     stress = json.loads((Path(args.stress) / "results.json").read_text()) if args.stress else None
-    timing = (f" (times the fastest of {bench['runs']} runs on spheres.json, of {stress['runs']} on the stress "
-              "scenes)") if stress else ""
-    md += efficiency_table(rows + (stress["results"] if stress else []), timing=timing)
-    md += efficiency_table(rows + (stress["results"] if stress else []), device="gpu", timing=timing)
+    def timing(key):
+        if not stress:
+            return ""
+        runs, stress_runs = bench.get(key) or bench["runs"], stress.get(key) or stress["runs"]
+        return f" (times the fastest of {runs} runs on spheres.json, of {stress_runs} on the stress scenes)"
+    md += efficiency_table(rows + (stress["results"] if stress else []), timing=timing("runs"))
+    md += efficiency_table(rows + (stress["results"] if stress else []), device="gpu", timing=timing("gpu_runs"))
     md += sampler_section(bench["results"])
     if args.floor:
         md += floor_section(json.loads((Path(args.floor) / "results.json").read_text()))
