@@ -233,7 +233,7 @@ inline float CutPoint::visibleShare(const glm::vec3& centre, int level) const {
     const float dist = std::sqrt(std::max(2.0f - 2.0f * d, 0.0f));
     const float s = std::min(std::max((dist - std::abs(rn - chord[j])) / (2.0f * small), 0.0f), 1.0f);
     const float ratio = small / rn;
-    const float share = (1.0f - s * s * (3.0f - 2.0f * s)) * (ratio * ratio);
+    const float share = (1.0f - cutSegmentShare(s)) * (ratio * ratio);
     open[j] = d > outside[j] ? 1.0f - share : 1.0f;
   }
   float visible = 1.0f;
@@ -246,8 +246,9 @@ inline float CutPoint::visibleShare(const glm::vec3& centre, int level) const {
 // least kCutHorizonFloor x its power x the cos of its bounding cone's
 // highest point. A partly covered node's visible share: the node and the
 // cap as discs in the plane (chords for radii and distance), the smaller's
-// covered share 1 - smoothstep between the discs touching from inside and
-// from outside; the smallest share under any cap (a ball on a plane
+// covered share 1 - cutSegmentShare of how far it reaches past the
+// larger's edge (0 touching it from inside, 1 from outside), as if that
+// edge were straight; the smallest share under any cap (a ball on a plane
 // overlaps it), at least minPartial.
 float CutPoint::weight(const CutLight& n, bool withLobe, bool* uncertain) const {
   const size_t l = size_t(n.level);

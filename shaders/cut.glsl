@@ -122,6 +122,13 @@ precise float cutClippedCosine(float sinE, float sinR) {
   return sinR * (q * c);
 }
 
+// cutSegmentShare.
+precise float cutSegmentShare(float x) {
+  precise float a = min(x, 1.0 - x);
+  precise float f = (a * sqrt(a)) * (1.697265625 - 0.56640625 * a);
+  return x <= 0.5 ? f : 1.0 - f;
+}
+
 // CutPoint::weight of a node; `uncertain` set where the horizon or a cap
 // cuts it.
 precise float cutWeightOf(CutNodeData n, bool withLobe, inout bool uncertain) {
@@ -186,8 +193,7 @@ precise float cutWeightOf(CutNodeData n, bool withLobe, inout bool uncertain) {
       precise float dist = sqrt(max(2.0 - 2.0 * d, 0.0));
       precise float x = clamp((dist - abs(rn - chord)) / (2.0 * small), 0.0, 1.0);
       precise float ratio = small / rn;
-      precise float smooth3 = x * x * (3.0 - 2.0 * x);
-      precise float covered = (1.0 - smooth3) * (ratio * ratio);
+      precise float covered = (1.0 - cutSegmentShare(x)) * (ratio * ratio);
       visible = min(visible, 1.0 - covered);
     }
   }

@@ -2,6 +2,7 @@
 // samples, the weights' first moments, the fixed sample count, unbiasedness
 // against the brute force at low and high counts, and images that the
 // thread count never changes.
+#include <cmath>
 #include <numeric>
 
 #include <gtest/gtest.h>
@@ -108,6 +109,31 @@ TEST(Cut, SizeFollowsSppUnlessGiven) {
   scene.environment = sunriseAt(6);
   const MethodTables tables = prepareTables(scene, Method::HtCut, optionsForSpp(MethodOptions{}, 64));
   EXPECT_EQ(tables.own<EnvCut>().nodes.size(), 510u);  // 12 + 3 x 166: each split adds three
+}
+
+// A disc's share beyond a straight edge is the circular segment's area
+// over the disc's, to within 0.0016, and right in order where the disc
+// barely reaches past the edge (within 0.5 % of it from x = 0.001), where a
+// partly covered node's visible light is otherwise underweighted.
+TEST(Cut, SegmentShareFollowsTheCircularSegment) {
+  const auto exact = [](double x) {
+    const double t = 2.0 * std::acos(1.0 - 2.0 * x);
+    return (t - std::sin(t)) / (2.0 * M_PI);
+  };
+  EXPECT_EQ(cutSegmentShare(0.0f), 0.0f);
+  EXPECT_EQ(cutSegmentShare(1.0f), 1.0f);
+  float last = 0.0f;
+  for (int i = 0; i <= 1000; ++i) {
+    const float x = float(i) / 1000.0f;
+    const float share = cutSegmentShare(x);
+    EXPECT_NEAR(share, exact(double(x)), 0.0016) << x;
+    EXPECT_GE(share, last) << x;
+    last = share;
+  }
+  for (const double x : {0.001, 0.003, 0.01, 0.03}) {
+    EXPECT_NEAR(cutSegmentShare(float(x)) / exact(x), 1.0, 0.005) << x;
+    EXPECT_NEAR((1.0 - cutSegmentShare(float(1.0 - x))) / exact(x), 1.0, 0.005) << x;
+  }
 }
 
 // Directions drawn from uniform points of the cut's prefix sums follow the
