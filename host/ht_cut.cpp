@@ -217,28 +217,37 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
   }
 }
 
-// Every slot's share in a second loop like weight's, kept where the cap
-// covers the node in part.
+// The cap that covers the node deepest in part: the largest depth past the
+// node's outside threshold over the span from there to its inside one
+// (compared by cross products, no division), the first of equals; its
+// covered share alone.
 inline float CutPoint::visibleShare(const glm::vec3& centre, int level) const {
   const size_t l = size_t(level);
+  const float* inside = caps.inside.data() + l * kCutMaxCaps;
   const float* outside = caps.outside.data() + l * kCutMaxCaps;
   const float *x = caps.x.data(), *y = caps.y.data(), *z = caps.z.data();
   const float cx = centre.x, cy = centre.y, cz = centre.z;
-  const float rn = cut.discChord[l];
-  const float* chord = caps.chord.data();
-  std::array<float, kCutMaxCaps> open;
+  float depth = 0.0f, span = 1.0f, dot = 0.0f, chord = 0.0f;
   for (size_t j = 0; j < kCutMaxCaps; ++j) {
     const float d = (cx * x[j] + cy * y[j]) + cz * z[j];
-    const float small = std::min(rn, chord[j]);
-    const float dist = std::sqrt(std::max(2.0f - 2.0f * d, 0.0f));
-    const float s = std::min(std::max((dist - std::abs(rn - chord[j])) / (2.0f * small), 0.0f), 1.0f);
-    const float ratio = small / rn;
-    const float share = (1.0f - cutSegmentShare(s)) * (ratio * ratio);
-    open[j] = d > outside[j] ? 1.0f - share : 1.0f;
+    const float past = d - outside[j];
+    if (!(past > 0.0f)) continue;
+    const float range = std::min(inside[j], 1.0f) - outside[j];
+    if (past * span > depth * range) {
+      depth = past;
+      span = range;
+      dot = d;
+      chord = caps.chord[j];
+    }
   }
-  float visible = 1.0f;
-  for (const float v : open) visible = std::min(visible, v);
-  return visible;
+  if (!(depth > 0.0f)) return 1.0f;
+  const float rn = cut.discChord[l];
+  const float small = std::min(rn, chord);
+  const float dist = std::sqrt(std::max(2.0f - 2.0f * dot, 0.0f));
+  const float s = std::min(std::max((dist - std::abs(rn - chord)) / (2.0f * small), 0.0f), 1.0f);
+  const float ratio = small / rn;
+  const float covered = (1.0f - cutSegmentShare(s)) * (ratio * ratio);
+  return 1.0f - covered;
 }
 
 // The diffuse part is exact where the node lies above the horizon; where
@@ -248,8 +257,9 @@ inline float CutPoint::visibleShare(const glm::vec3& centre, int level) const {
 // cap as discs in the plane (chords for radii and distance), the smaller's
 // covered share 1 - cutSegmentShare of how far it reaches past the
 // larger's edge (0 touching it from inside, 1 from outside), as if that
-// edge were straight; the smallest share under any cap (a ball on a plane
-// overlaps it), at least minPartial.
+// edge were straight; under the cap that reaches deepest into the node
+// (visibleShare; where a ball stands on a plane their caps overlap), at
+// least minPartial.
 float CutPoint::weight(const CutLight& n, bool withLobe, bool* uncertain) const {
   const size_t l = size_t(n.level);
   const float power = n.power;

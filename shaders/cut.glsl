@@ -163,39 +163,42 @@ precise float cutWeightOf(CutNodeData n, bool withLobe, inout bool uncertain) {
     w = gCut.diffuse * d;
   }
   if (!(w > 0.0) || gCutCaps == 0u) return w;
-  // The caps' cheap tests first; the covered shares only where a lane of
-  // the SIMD group has a node a cap covers in part (subgroupAny: a branch
-  // the whole group takes or skips, where llvmpipe would otherwise run the
-  // shares' code for every node).
+  // The caps' cheap tests, and the cap reaching deepest into the node
+  // (visibleShare); its covered share only where a lane of the SIMD group
+  // has one (subgroupAny: a branch the whole group takes or skips, where
+  // llvmpipe would otherwise run its code for every node).
   float rn = n.chord;
   float cR = n.cosRb, sR = n.sinRb;
-  float dots[HT_CUT_MAX_CAPS];
-  uint partial = 0u;
   bool inside = false;
+  float depth = 0.0, span = 1.0, deepest = 0.0, chord = 0.0;
   [[unroll]] for (uint k = 0u; k < kCutCapSlots; ++k) {
     if (((gCutCaps >> k) & 1u) == 0u) continue;
     precise float d = dot3(centre, gCutCapAxis[k]);
     precise float innerTest = gCutCapSin[k] * cR - gCutCapCos[k] * sR;
     precise float insideCos = innerTest > 0.0 ? gCutCapCos[k] * cR + gCutCapSin[k] * sR : 2.0;
     precise float outsideCos = gCutCapCos[k] * cR - gCutCapSin[k] * sR;
-    dots[k] = d;
     inside = inside || d >= insideCos;
-    if (d > outsideCos) partial |= 1u << k;
+    precise float past = d - outsideCos;
+    if (!(past > 0.0)) continue;
+    precise float range = min(insideCos, 1.0) - outsideCos;
+    precise float ahead = past * span;
+    precise float behind = depth * range;
+    if (ahead > behind) {
+      depth = past;
+      span = range;
+      deepest = d;
+      chord = gCutCapChord[k];
+    }
   }
   if (inside) return 0.0;
   precise float visible = 1.0;
-  if (subgroupAny(partial != 0u)) {
-    [[unroll]] for (uint k = 0u; k < kCutCapSlots; ++k) {
-      if (((partial >> k) & 1u) == 0u) continue;
-      float d = dots[k];
-      float chord = gCutCapChord[k];
-      float small = min(rn, chord);
-      precise float dist = sqrt(max(2.0 - 2.0 * d, 0.0));
-      precise float x = clamp((dist - abs(rn - chord)) / (2.0 * small), 0.0, 1.0);
-      precise float ratio = small / rn;
-      precise float covered = (1.0 - cutSegmentShare(x)) * (ratio * ratio);
-      visible = min(visible, 1.0 - covered);
-    }
+  if (subgroupAny(depth > 0.0) && depth > 0.0) {
+    float small = min(rn, chord);
+    precise float dist = sqrt(max(2.0 - 2.0 * deepest, 0.0));
+    precise float x = clamp((dist - abs(rn - chord)) / (2.0 * small), 0.0, 1.0);
+    precise float ratio = small / rn;
+    precise float covered = (1.0 - cutSegmentShare(x)) * (ratio * ratio);
+    visible = 1.0 - covered;
   }
   if (visible < 1.0) uncertain = true;
   precise float weighted = w * max(visible, scene.cutMinPartial);
