@@ -221,7 +221,7 @@ CutPoint::CutPoint(const Scene& scene, const ShadingPoint& sp, const Shading& sh
 // node's outside threshold over the span from there to its inside one
 // (compared by cross products, no division), the first of equals; its
 // covered share alone.
-inline float CutPoint::visibleShare(const glm::vec3& centre, int level) const {
+float CutPoint::visibleShare(const glm::vec3& centre, int level) const {
   const size_t l = size_t(level);
   const float* inside = caps.inside.data() + l * kCutMaxCaps;
   const float* outside = caps.outside.data() + l * kCutMaxCaps;
@@ -231,14 +231,15 @@ inline float CutPoint::visibleShare(const glm::vec3& centre, int level) const {
   for (size_t j = 0; j < kCutMaxCaps; ++j) {
     const float d = (cx * x[j] + cy * y[j]) + cz * z[j];
     const float past = d - outside[j];
-    if (!(past > 0.0f)) continue;
     const float range = std::min(inside[j], 1.0f) - outside[j];
-    if (past * span > depth * range) {
-      depth = past;
-      span = range;
-      dot = d;
-      chord = caps.chord[j];
-    }
+    // Selections, not branches: which cap wins is data the branch
+    // predictor cannot learn. The slots past count have infinite
+    // thresholds, past = -inf, and never win.
+    const bool deeper = (past > 0.0f) & (past * span > depth * range);
+    depth = deeper ? past : depth;
+    span = deeper ? range : span;
+    dot = deeper ? d : dot;
+    chord = deeper ? caps.chord[j] : chord;
   }
   if (!(depth > 0.0f)) return 1.0f;
   const float rn = cut.discChord[l];
