@@ -210,8 +210,9 @@ struct CutPoint {
     return weight(cut.light(tree, g, level, at), withLobe, uncertain);
   }
   float weight(const CutLight& n, bool withLobe, bool* uncertain = nullptr) const;
-  // The share of a node of `level` centred at `centre` that the caps
-  // covering it in part leave open (1 where none does).
+  // The share of a node of `level` centred at `centre` that the cap
+  // reaching deepest into it leaves open, of those covering it in part (1
+  // where none does).
   float visibleShare(const glm::vec3& centre, int level) const;
   // A diffuse point's weights (weight without the lobe) of the columns'
   // entries, all but the shares visibleShare gives: w[i] the weight where
