@@ -55,8 +55,8 @@ expect_error "--frontier-colour-control" render --scene "$data/scenes/furnace.js
   grep -q '"frontier_colour_control": "off"' "$tmp/cv.json" && ok || fail "--frontier-colour-control off in the stats"
 expect_error "--cut-nodes 5: -1 (by spp) or 12 to 512" render --scene "$data/scenes/furnace.json" --device cpu \
   --method ht-cut --cut-nodes 5 --out "$tmp/s.exr"
-# The cut's size: 8 x spp within [256, 512] unless given.
-for case in "16 -1 256" "48 -1 384" "64 -1 512" "64 100 100"; do
+# The cut's size: 8 x spp within [192, 512] unless given.
+for case in "16 -1 192" "32 -1 256" "48 -1 384" "64 -1 512" "64 100 100"; do
   read -r spp nodes want <<<"$case"
   "$bin" render --scene "$data/scenes/furnace.json" --method ht-cut --spp "$spp" --cut-nodes "$nodes" --width 4 \
     --height 2 --device cpu --out "$tmp/k.exr" --stats "$tmp/k.json" -q &&

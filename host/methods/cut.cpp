@@ -19,7 +19,7 @@ namespace {
 
 const MethodOption kCutOptions[] = {
     {"--cut-nodes", "cut_nodes",
-     "ht-cut: nodes K of the environment's cut, each weighed at every shading point (-1: 8 x spp within [256, 512])",
+     "ht-cut: nodes K of the environment's cut, each weighed at every shading point (-1: 8 x spp within [192, 512])",
      {}, -1, HT_CUT_MAX_NODES, [](const MethodOptions& o) { return o.cutNodes; },
      [](MethodOptions& o, int v) { o.cutNodes = v; }},
 };
