@@ -72,7 +72,6 @@ EnvCut buildEnvCut(const Environment& env, const HtGeometry& g, int nodes) {
   const int order = env.order;
   EnvCut cut;
   cut.momentLevel = std::min(kCutMomentLevel, order);
-  cut.refineLevel = std::min(kCutRefineLevel, cut.momentLevel);
   cut.moment = firstMoments(env, g, cut.momentLevel);
   cut.chroma = nodeChroma(env, cut.momentLevel);
   for (int level = 0; level <= order; ++level) {
@@ -408,7 +407,7 @@ void CutDensity::reset(const CutPoint& point, const Environment& env, const CutO
       const int level = cut.nodes[k].level;
       bool uncertain = false;
       nodeWeight_[k] = point.diffuseWeight(cut.columns, i, level, open_[i], flags_[i], &uncertain);
-      if (uncertain && cut.refines(level)) {
+      if (uncertain && level < cut.momentLevel) {
         refined_.push_back(uint32_t(k));
         const auto first = cut.lights.begin() + int64_t(K + 4 * k);
         childLights_.insert(childLights_.end(), first, first + 4);
@@ -442,7 +441,7 @@ void CutDensity::reset(const CutPoint& point, const Environment& env, const CutO
       w = point.weight(cut.lights[k], lobe, &uncertain);
       // Its four children's weights where the horizon or a cap cuts it: the
       // descent's first step draws by them, so any weight keeps the pdf.
-      if (uncertain && cut.refines(c.level)) {
+      if (uncertain && c.level < cut.momentLevel) {
         float* cw = &children_[4 * k];
         for (size_t j = 0; j < 4; ++j) cw[j] = point.weight(cut.lights[K + 4 * k + j], lobe);
         w = keepChildren(uint32_t(k), w);

@@ -55,12 +55,6 @@ class Rng;
 constexpr int kCutMaxLevel = HT_CUT_MAX_LEVEL;
 // The deepest level whose nodes a point weighs: a cut node's children.
 constexpr int kCutMomentLevel = kCutMaxLevel + 1;
-// A node of the cut the horizon or a cap cuts is weighed by its four
-// children where it is wide (above this level: its light is far from the
-// uniform disc the clipped cosine and the covered share assume) or where
-// the cut could not split it further (a small bright source); the nodes
-// between gained little error for their children's time.
-constexpr int kCutRefineLevel = HT_CUT_REFINE_LEVEL;
 // A node's weight is at least this share of its power x the cos of its
 // bounding cone's highest point, where that point lies above the horizon.
 constexpr float kCutHorizonFloor = HT_CUT_HORIZON_FLOOR;
@@ -131,10 +125,6 @@ struct EnvCut {
   int lookupLevel = 0;           // min(kCutMaxLevel, the map's order)
   std::vector<uint32_t> lookup;  // per node of lookupLevel: the cut node holding it
   int momentLevel = 0;           // min(kCutMomentLevel, the map's order)
-  int refineLevel = 0;           // min(kCutRefineLevel, momentLevel)
-  // Whether a node of the cut of `level` that the horizon or a cap cuts
-  // weighs its children's weights (kCutRefineLevel).
-  bool refines(int level) const { return level < momentLevel && (level < refineLevel || level == lookupLevel); }
   // Per tree node down to momentLevel (the tree's layout): the first moment
   // of its light, luminance x solid angle x centre summed over its leaves
   // (HEALPix frame).

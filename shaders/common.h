@@ -119,9 +119,6 @@
 // this many.
 #define HT_CUT_MAX_LEVEL 7
 #define HT_CUT_MAX_NODES 512
-// ht-cut: a node of the cut the horizon or a cap cuts is weighed by its
-// children's weights where it lies above this level (kCutRefineLevel).
-#define HT_CUT_REFINE_LEVEL 3
 #define HT_CUT_HORIZON_FLOOR 0.015625  // kCutHorizonFloor (exact in float)
 #define HT_CUT_MIN_SHARE 0.125       // kCutMinShare (exact in float)
 // ht-cut's caps per point at most: the first this many occluder slots (of
@@ -293,7 +290,7 @@ struct GpuScene {
   float cutLobeSpan;     // cutLobeShare's rho
   float cutMinPartial;   // CutOptions::minPartialVisibility
   float cutCapCosMargin, cutCapSinMargin;  // cos and sin of kCapMargin
-  uint cutRefineLevel;   // EnvCut::refineLevel
+  uint cutReserved;
   float cutDiscSin[32];    // EnvCut::discSin
   float cutDiscChord[32];  // EnvCut::discChord
   float cutOmega[32];      // EnvCut::omega

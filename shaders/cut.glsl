@@ -247,11 +247,6 @@ uint cutPick(float w[4], inout hreal u, out float prob) {
   return last;
 }
 
-// EnvCut::refines.
-bool cutRefines(uint level) {
-  return level < scene.cutMomentLevel && (level < scene.cutRefineLevel || level == scene.cutLookupLevel);
-}
-
 // The point's weights over the cut into gCutCum (withLobe: a lobe alone's);
 // returns their total and the weighted sum of the nodes' chroma.
 float cutWeightsWith(bool withLobe, out vec3 chromaSum) {
@@ -264,7 +259,7 @@ float cutWeightsWith(bool withLobe, out vec3 chromaSum) {
     bool uncertain = false;
     CutNodeData n = cutRecord(k);
     gCutCum[k + 1u] = cutWeightOf(n, withLobe, uncertain);
-    if (uncertain && cutRefines(n.level)) {
+    if (uncertain && n.level < scene.cutMomentLevel) {
       gCutRefined[k >> 5] |= 1u << (k & 31u);
       ++refined;
     }

@@ -112,24 +112,6 @@ TEST(Cut, SizeFollowsSppUnlessGiven) {
   EXPECT_EQ(tables.own<EnvCut>().nodes.size(), 510u);  // 12 + 3 x 166: each split adds three
 }
 
-// A node the horizon or a cap cuts weighs its children where it is wide
-// (above kCutRefineLevel) or at the cut's finest level, and only there.
-TEST(Cut, RefinesWideNodesAndTheFinest) {
-  Scene scene = readSceneFile(std::string(HT_TEST_DATA) + "/scenes/spheres.json");
-  scene.environment = sunriseAt(8);
-  const MethodTables tables = prepareTables(scene, Method::HtCut, optionsForSpp(MethodOptions{}, 16));
-  const EnvCut& cut = tables.own<EnvCut>();
-  ASSERT_EQ(cut.lookupLevel, kCutMaxLevel);
-  ASSERT_LT(cut.lookupLevel, cut.momentLevel);
-  for (int level = 0; level <= cut.momentLevel; ++level)
-    EXPECT_EQ(cut.refines(level), level < kCutRefineLevel || level == kCutMaxLevel) << level;
-  // At order 7 the finest level has no children below it to weigh.
-  scene.environment = sunriseAt(7);
-  const MethodTables coarse = prepareTables(scene, Method::HtCut, optionsForSpp(MethodOptions{}, 16));
-  EXPECT_FALSE(coarse.own<EnvCut>().refines(kCutMaxLevel));
-  EXPECT_TRUE(coarse.own<EnvCut>().refines(kCutRefineLevel - 1));
-}
-
 // A disc's share beyond a straight edge is the circular segment's area
 // over the disc's, to within 0.0016, and right in order where the disc
 // barely reaches past the edge (within 0.5 % of it from x = 0.001), where a
@@ -313,7 +295,7 @@ TEST(Cut, ColumnsWeighAsNodeByNode) {
         open.caps.count = 0;
         partial += open.weight(cut.lights[k], false) != w;
       }
-      if (uncertain && cut.refines(cut.nodes[k].level)) {
+      if (uncertain && cut.nodes[k].level < cut.momentLevel) {
         ++refined;
         float children = 0.0f;
         for (size_t j = 0; j < 4; ++j) children += point.weight(cut.lights[K + 4 * k + j], false);

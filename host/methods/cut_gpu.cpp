@@ -72,7 +72,6 @@ class CutGpuState : public GpuMethodState {
     gs.cutCount = uint32_t(cut.nodes.size());
     gs.cutLookupLevel = uint32_t(cut.lookupLevel);
     gs.cutMomentLevel = uint32_t(cut.momentLevel);
-    gs.cutRefineLevel = uint32_t(cut.refineLevel);
     gs.cutProductLevel = uint32_t(std::max(options.productLevel, 0));
     gs.cutFlags = (options.visibility ? HT_CUT_VISIBILITY : 0u) | (options.colourControl ? HT_CUT_COLOUR_CONTROL : 0u);
     gs.cutLobeSpan = cutLobeSpan(options, cut, g);
