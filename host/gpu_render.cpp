@@ -69,6 +69,9 @@ constexpr vk::BindingLayout kBindings[] = {
     {HT_BINDING_CUT_TREE_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
     {HT_BINDING_CUT_RECORD_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
     {HT_BINDING_CUT_LOOKUP_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_SPHERE_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_BVH_NODE_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
+    {HT_BINDING_BVH_ORDER_TEXELS, 0, 0, vk::BindingKind::UniformTexel},
 };
 static_assert(std::size(kBindings) == HT_BINDING_COUNT);
 
@@ -250,7 +253,8 @@ void GpuRenderer::setScene(const Scene& scene) {
   const uint64_t nodes = env.tree.maxv.size(), maxTexels = ctx.info.maxTexelBufferElements;
   m.texels = m.texelViews && pixelCount <= kRadianceChunkElements && 3 * pixelCount <= maxTexels &&
              nodes <= kTreeChunkElements && nodes <= (uint64_t(1) << HT_HT_VEC3_CHUNK_SHIFT) &&
-             nodes <= (uint64_t(1) << HT_HT_VEC2_CHUNK_SHIFT) && 3 * nodes <= maxTexels;
+             nodes <= (uint64_t(1) << HT_HT_VEC2_CHUNK_SHIFT) && 3 * nodes <= maxTexels &&
+             scene.spheres.size() <= maxTexels && 2 * scene.sphereBvh.nodes.size() <= maxTexels;
   for (auto& [binding, t] : m.texelBuffers) t.buffer = nullptr;
   m.texelBuffers[HT_BINDING_RADIANCE_TEXELS].buffer = &m.chunks[first[0]];
   m.texelBuffers[HT_BINDING_TREE_AVG_TEXELS].buffer = &m.chunks[first[1]];
@@ -304,6 +308,12 @@ void GpuRenderer::setScene(const Scene& scene) {
   m.planes = uploadArray(ctx, planes);
   m.bvhNodes = uploadArray(ctx, bvhNodes);
   m.bvhOrder = uploadArray(ctx, bvhNodes.empty() ? std::vector<uint32_t>{} : bvh.order);
+  std::vector<glm::vec4> shapes;
+  for (const Sphere& s : scene.spheres) shapes.emplace_back(s.center, s.radius);
+  m.sphereShapes = uploadArray(ctx, shapes);
+  m.texelBuffers[HT_BINDING_SPHERE_TEXELS].buffer = shapes.empty() ? nullptr : &m.sphereShapes;
+  m.texelBuffers[HT_BINDING_BVH_NODE_TEXELS].buffer = bvhNodes.empty() ? nullptr : &m.bvhNodes;
+  m.texelBuffers[HT_BINDING_BVH_ORDER_TEXELS].buffer = bvhNodes.empty() ? nullptr : &m.bvhOrder;
   m.bindScene();
   m.scene = gs;
   m.sceneFields = gs;

@@ -47,6 +47,7 @@ struct GpuRenderer::Impl {
   bool hasScene = false;
   std::vector<vk::Buffer> chunks;
   vk::Buffer sceneBuffer, materials, spheres, planes, bvhNodes, bvhOrder;
+  vk::Buffer sphereShapes;  // centre and radius per sphere, for HT_BINDING_SPHERE_TEXELS
   // Per texel binding, its format and the buffer (first chunk) it views,
   // null until that array is uploaded. bindScene gives a binding without a
   // buffer, and every binding when the arrays do not fit texel views
@@ -57,7 +58,9 @@ struct GpuRenderer::Impl {
       {HT_BINDING_HT_CONES_TEXELS, {VK_FORMAT_R32_SFLOAT}},        {HT_BINDING_FRONTIER_CHROMA_TEXELS, {VK_FORMAT_R32_SFLOAT}},
       {HT_BINDING_FRONTIER_CENTROID_TEXELS, {VK_FORMAT_R32_SFLOAT}}, {HT_BINDING_FRONTIER_BINS_TEXELS, {VK_FORMAT_R32_UINT}},
       {HT_BINDING_CUT_TREE_TEXELS, {VK_FORMAT_R32G32B32A32_SFLOAT}},      {HT_BINDING_CUT_RECORD_TEXELS, {VK_FORMAT_R32G32B32A32_SFLOAT}},
-      {HT_BINDING_CUT_LOOKUP_TEXELS, {VK_FORMAT_R32_UINT}}};
+      {HT_BINDING_CUT_LOOKUP_TEXELS, {VK_FORMAT_R32_UINT}},
+      {HT_BINDING_SPHERE_TEXELS, {VK_FORMAT_R32G32B32A32_SFLOAT}},   {HT_BINDING_BVH_NODE_TEXELS, {VK_FORMAT_R32G32B32A32_UINT}},
+      {HT_BINDING_BVH_ORDER_TEXELS, {VK_FORMAT_R32_UINT}}};
   // The scene's own (setScene's), which each render starts from before its
   // method fills its part.
   std::map<uint32_t, TexelBinding> sceneTexels;

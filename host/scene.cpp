@@ -1,6 +1,7 @@
 #include "scene.h"
 
 #include <algorithm>
+#include <array>
 #include <numeric>
 #include <cerrno>
 #include <chrono>
@@ -17,6 +18,7 @@
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
+#include "common.h"  // shaders/common.h
 #include "healpix.h"
 #include "image_io.h"
 #include "sampling.h"
@@ -359,9 +361,15 @@ bool usesBvh(const Scene& scene) {
   return !scene.sphereBvh.nodes.empty() && scene.sphereBvh.spheres == scene.spheres.size();
 }
 
-// capSpheres' floors on the sines, pass by pass; the last, 0, visits every
-// box that may rank.
-constexpr float kCapFloors[] = {0.05f, 0.01f, 0.0f};
+// capSpheres' floors on the sines, pass by pass, halving from
+// HT_CAP_FIRST_FLOOR (shaders/common.h); the last, 0, visits every box that
+// may rank. A high first floor finds the near spheres first, whose k-th
+// sine then prunes the far boxes.
+constexpr auto kCapFloors = [] {
+  std::array<float, HT_CAP_PASSES> floors{};
+  for (int p = 0; p + 1 < HT_CAP_PASSES; ++p) floors[size_t(p)] = float(HT_CAP_FIRST_FLOOR) / float(1 << p);
+  return floors;
+}();
 
 // An upper bound of capRank's sine for any sphere inside the node's box:
 // such a sphere has r <= R, half the box's least extent, and its nearest
@@ -533,25 +541,30 @@ std::vector<uint32_t> capSpheres(const Scene& scene, const glm::vec3& origin, co
   if (usesBvh(scene)) {
     // Passes with a decreasing floor on the sines: a pass visits only boxes
     // that may hold a sphere at or above its floor, so when its k-th best
-    // reaches the floor no sphere it skipped could rank (kCapFloors).
+    // reaches the floor no sphere it skipped could rank (kCapFloors). A
+    // leaf whose bound reaches the previous pass's floor was visited then
+    // (a box's bound is at most its parent's), or the k-th best passed it.
     const Bvh& bvh = scene.sphereBvh;
+    float above = 2.0f;
     for (const float floor : kCapFloors) {
-      best.clear();
       uint32_t stack[kBvhMaxDepth + 1];
       int size = 0;
       stack[size++] = 0;
       while (size > 0) {
         const BvhNode& node = bvh.nodes[stack[--size]];
         const float least = best.size() == k ? std::max(floor, best.back().first) : floor;
-        if (capBound(node, origin) < least) continue;
+        const float bound = capBound(node, origin);
+        if (bound < least) continue;
         if (node.count > 0) {
-          for (uint32_t j = node.first; j < node.first + node.count; ++j) consider(bvh.order[j]);
+          if (bound < above)
+            for (uint32_t j = node.first; j < node.first + node.count; ++j) consider(bvh.order[j]);
         } else {
           stack[size++] = node.first;
           stack[size++] = uint32_t(&node - bvh.nodes.data()) + 1;
         }
       }
       if (best.size() == k && best.back().first >= floor) break;
+      above = floor;
     }
   } else {
     for (uint32_t i = 0; i < uint32_t(n); ++i) consider(i);

@@ -38,6 +38,9 @@ layout(set = 0, binding = HT_BINDING_FRONTIER_BINS_TEXELS) uniform usamplerBuffe
 layout(set = 0, binding = HT_BINDING_CUT_TREE_TEXELS) uniform samplerBuffer cutTreeTexels;
 layout(set = 0, binding = HT_BINDING_CUT_RECORD_TEXELS) uniform samplerBuffer cutRecordTexels;
 layout(set = 0, binding = HT_BINDING_CUT_LOOKUP_TEXELS) uniform usamplerBuffer cutLookupTexels;
+layout(set = 0, binding = HT_BINDING_SPHERE_TEXELS) uniform samplerBuffer sphereTexels;
+layout(set = 0, binding = HT_BINDING_BVH_NODE_TEXELS) uniform usamplerBuffer bvhNodeTexels;
+layout(set = 0, binding = HT_BINDING_BVH_ORDER_TEXELS) uniform usamplerBuffer bvhOrderTexels;
 
 // Element i of a texel view of vec3s or vec2s stored as floats.
 vec3 texelVec3(samplerBuffer b, uint i) {
@@ -48,5 +51,19 @@ vec2 texelVec2(samplerBuffer b, uint i) {
   int t = 2 * int(i);
   return vec2(texelFetch(b, t).x, texelFetch(b, t + 1).x);
 }
+
+// Sphere i's centre and radius (its material only from `spheres`), BVH node
+// i, and the BVH's k-th sphere index.
+GpuSphere sphereShape(uint i) {
+  if (!kTexels) return spheres[i];
+  vec4 v = texelFetch(sphereTexels, int(i));
+  return GpuSphere(v.xyz, v.w, 0u);
+}
+GpuBvhNode bvhNode(uint i) {
+  if (!kTexels) return bvhNodes[i];
+  uvec4 a = texelFetch(bvhNodeTexels, int(2u * i)), b = texelFetch(bvhNodeTexels, int(2u * i + 1u));
+  return GpuBvhNode(uintBitsToFloat(a.xyz), a.w, uintBitsToFloat(b.xyz), b.w);
+}
+uint bvhSphere(uint k) { return kTexels ? texelFetch(bvhOrderTexels, int(k)).x : bvhOrder[k]; }
 
 #endif

@@ -6,15 +6,59 @@
 #include "environment.glsl"
 #include "scene.glsl"
 
-// The selection of each invocation of the workgroup, entry j at
-// j * invocations + invocation: in shared memory rather than in 32
-// registers, which would raise ht-frontier's peak by as many.
+// The longest selection a shader makes (a shader that keeps fewer defines
+// it before this file: the insertion and the sort below take as many
+// steps).
+#ifndef HT_CAP_LIST
+#define HT_CAP_LIST HT_MAX_CAPS
+#endif
+// The selection of each invocation, entry j: a short one in registers, read
+// and written at constant indices only (llvmpipe reads and writes shared
+// memory at a per-lane address lane by lane); a long one in shared memory
+// at j * invocations + invocation, since 32 registers would raise
+// ht-frontier's peak by as many.
+#if HT_CAP_LIST <= 8
+float gCapSine[HT_CAP_LIST];
+uint gCapIndex[HT_CAP_LIST];
+#define HT_CAP_SINE(j) gCapSine[j]
+#define HT_CAP_INDEX(j) gCapIndex[j]
+#else
 const uint kCapInvocations = HT_WORKGROUP_SIZE * HT_WORKGROUP_SIZE;
-shared uint sCapSphere[HT_MAX_CAPS * kCapInvocations];
-shared float sCapSine[HT_MAX_CAPS * kCapInvocations];
+shared uint sCapSphere[HT_CAP_LIST * kCapInvocations];
+shared float sCapSine[HT_CAP_LIST * kCapInvocations];
 uint capAt(uint j) { return j * kCapInvocations + gl_LocalInvocationIndex; }
-// The j-th sphere capSpheres chose, in increasing index order.
+#define HT_CAP_SINE(j) sCapSine[capAt(j)]
+#define HT_CAP_INDEX(j) sCapSphere[capAt(j)]
+#endif
+// Entry j at an index not known when compiling: in registers, one select
+// per entry.
+#if HT_CAP_LIST <= 8
+float capSineAt(uint j) {
+  float v = gCapSine[0];
+  [[unroll]] for (uint e = 1u; e < HT_CAP_LIST; ++e) v = e == j ? gCapSine[e] : v;
+  return v;
+}
+uint capSphere(uint j) {
+  uint v = gCapIndex[0];
+  [[unroll]] for (uint e = 1u; e < HT_CAP_LIST; ++e) v = e == j ? gCapIndex[e] : v;
+  return v;
+}
+void capSet(uint j, float sine, uint sphere) {
+  [[unroll]] for (uint e = 0u; e < HT_CAP_LIST; ++e)
+    if (e == j) {
+      gCapSine[e] = sine;
+      gCapIndex[e] = sphere;
+    }
+}
+#else
+float capSineAt(uint j) { return sCapSine[capAt(j)]; }
 uint capSphere(uint j) { return sCapSphere[capAt(j)]; }
+void capSet(uint j, float sine, uint sphere) {
+  sCapSine[capAt(j)] = sine;
+  sCapSphere[capAt(j)] = sphere;
+}
+#endif
+// capSphere(j): the j-th sphere capSpheres chose, in increasing index order.
 
 // capRank: the sine of the sphere's angular radius from `origin`; false at
 // the origin or wholly below the plane through it.
@@ -39,10 +83,10 @@ float capBound(GpuBvhNode n, vec3 origin) {
   return min(1.0, bound);
 }
 
-// Whether sphere i with `sine` ranks before the j-th entry: a larger sine,
-// then a lower index.
-bool capBefore(float sine, uint i, uint j) {
-  return sine > sCapSine[capAt(j)] || (sine == sCapSine[capAt(j)] && i < sCapSphere[capAt(j)]);
+// Whether sphere i with `sine` ranks before an entry: a larger sine, then a
+// lower index.
+bool capBefore(float sine, uint i, float entrySine, uint entryIndex) {
+  return sine > entrySine || (sine == entrySine && i < entryIndex);
 }
 
 // Sphere i into the best `count` of at most k, best first. The loops have
@@ -50,28 +94,27 @@ bool capBefore(float sine, uint i, uint j) {
 // iterations in all.
 void capConsider(uint i, vec3 origin, vec3 normal, uint k, inout uint count) {
   float sine;
-  if (!capRank(spheres[i], origin, normal, sine)) return;
-  if (count == k && !capBefore(sine, i, k - 1u)) return;
+  if (!capRank(sphereShape(i), origin, normal, sine)) return;
+  if (count == k && !capBefore(sine, i, capSineAt(k - 1u), capSphere(k - 1u))) return;
   // Every entry it precedes moves down one place; it takes the first of them.
   uint at = count == k ? k - 1u : count;
-  [[unroll]] for (uint j = HT_MAX_CAPS - 1u; j > 0u; --j) {
-    if (j <= at && capBefore(sine, i, j - 1u)) {
-      sCapSine[capAt(j)] = sCapSine[capAt(j - 1u)];
-      sCapSphere[capAt(j)] = sCapSphere[capAt(j - 1u)];
+  [[unroll]] for (uint j = HT_CAP_LIST - 1u; j > 0u; --j) {
+    if (j <= at && capBefore(sine, i, HT_CAP_SINE(j - 1u), HT_CAP_INDEX(j - 1u))) {
+      HT_CAP_SINE(j) = HT_CAP_SINE(j - 1u);
+      HT_CAP_INDEX(j) = HT_CAP_INDEX(j - 1u);
       at = j - 1u;
     }
   }
-  sCapSine[capAt(at)] = sine;
-  sCapSphere[capAt(at)] = i;
+  capSet(at, sine, i);
   count = min(count + 1u, k);
 }
 
-// capSpheres with `caps` slots (at most HT_MAX_CAPS): the planes' first,
+// capSpheres with `caps` slots (at most HT_CAP_LIST): the planes' first,
 // the spheres' what they leave (capSphereCount).
 uint capSpheresIn(vec3 origin, vec3 normal, uint caps) {
   const uint k = caps - min(caps, scene.planeCount);
   if (scene.sphereCount <= k) {
-    for (uint i = 0u; i < scene.sphereCount; ++i) sCapSphere[capAt(i)] = i;
+    for (uint i = 0u; i < scene.sphereCount; ++i) capSet(i, 0.0, i);
     return scene.sphereCount;
   }
   uint count = 0u;
@@ -79,16 +122,18 @@ uint capSpheresIn(vec3 origin, vec3 normal, uint caps) {
   if (scene.bvhNodeCount == 0u) {
     for (uint i = 0u; i < scene.sphereCount; ++i) capConsider(i, origin, normal, k, count);
   } else {
-    // Passes with capSpheres' floors (host/scene.cpp): the first visits the
-    // boxes near the point only.
-    const float floors[3] = float[3](0.05, 0.01, 0.0);
-    for (uint pass = 0u; pass < 3u; ++pass) {
-      count = 0u;
+    // Passes with capSpheres' floors (host/scene.cpp), each visiting the
+    // leaves the passes before left for their floors.
+    float above = 2.0;
+    for (uint pass = 0u; pass < uint(HT_CAP_PASSES); ++pass) {
+      precise float halved = float(HT_CAP_FIRST_FLOOR) / float(1u << pass);
+      const float floorSine = pass + 1u == uint(HT_CAP_PASSES) ? 0.0 : halved;
+      float least = count == k ? max(floorSine, capSineAt(k - 1u)) : floorSine;
       uint node = 0u;
       while (node < scene.bvhNodeCount) {
-        GpuBvhNode n = bvhNodes[node];
-        const float least = count == k ? max(floors[pass], sCapSine[capAt(k - 1u)]) : floors[pass];
-        if (capBound(n, origin) < least) {
+        GpuBvhNode n = bvhNode(node);
+        const float bound = capBound(n, origin);
+        if (bound < least) {
           node = n.skip;
           continue;
         }
@@ -96,25 +141,29 @@ uint capSpheresIn(vec3 origin, vec3 normal, uint caps) {
           ++node;
           continue;
         }
-        [[unroll]] for (uint j = 0u; j < uint(HT_BVH_LEAF_SIZE); ++j)
-          if (j < (n.leaf & 7u)) capConsider(bvhOrder[(n.leaf >> 3) + j], origin, normal, k, count);
+        if (bound < above) {
+          [[unroll]] for (uint j = 0u; j < uint(HT_BVH_LEAF_SIZE); ++j)
+            if (j < (n.leaf & 7u)) capConsider(bvhSphere((n.leaf >> 3) + j), origin, normal, k, count);
+          if (count == k) least = max(floorSine, capSineAt(k - 1u));
+        }
         node = n.skip;
       }
-      if (count == k && sCapSine[capAt(k - 1u)] >= floors[pass]) break;
+      if (count == k && capSineAt(k - 1u) >= floorSine) break;
+      above = floorSine;
     }
   }
   // In increasing index order, as the CPU keeps them (odd-even transposition sort).
-  [[unroll]] for (uint pass = 0u; pass < HT_MAX_CAPS; ++pass)
-    [[unroll]] for (uint a = pass & 1u; a + 1u < HT_MAX_CAPS; a += 2u)
-      if (a + 1u < count && sCapSphere[capAt(a)] > sCapSphere[capAt(a + 1u)]) {
-        uint v = sCapSphere[capAt(a)];
-        sCapSphere[capAt(a)] = sCapSphere[capAt(a + 1u)];
-        sCapSphere[capAt(a + 1u)] = v;
+  [[unroll]] for (uint pass = 0u; pass < HT_CAP_LIST; ++pass)
+    [[unroll]] for (uint a = pass & 1u; a + 1u < HT_CAP_LIST; a += 2u)
+      if (a + 1u < count && HT_CAP_INDEX(a) > HT_CAP_INDEX(a + 1u)) {
+        uint v = HT_CAP_INDEX(a);
+        HT_CAP_INDEX(a) = HT_CAP_INDEX(a + 1u);
+        HT_CAP_INDEX(a + 1u) = v;
       }
   return count;
 }
 
-uint capSpheres(vec3 origin, vec3 normal) { return capSpheresIn(origin, normal, uint(HT_MAX_CAPS)); }
+uint capSpheres(vec3 origin, vec3 normal) { return capSpheresIn(origin, normal, uint(HT_CAP_LIST)); }
 
 // occluders() (host/ht.cpp), seen from the shadow rays' origin: slot j
 // below capSpheres' count the j-th chosen sphere's cap, then one slot per
@@ -127,7 +176,7 @@ float gOccluderSine[HT_MAX_CAPS];
 // The cap of the j-th sphere capSpheres chose, seen from `origin`: its axis
 // and the sine of its half-angle; false at the sphere's centre.
 bool sphereCap(uint j, vec3 origin, out vec3 axis, out float sine) {
-  GpuSphere sp = spheres[capSphere(j)];
+  GpuSphere sp = sphereShape(capSphere(j));
   precise vec3 d = sp.center - origin;
   precise float dist = length3(d);
   precise vec3 unit = d / dist;

@@ -36,8 +36,12 @@
 #define HT_BINDING_CUT_TREE_TEXELS 15  // ht-cut: GpuScene::cutTree (R32G32B32A32_SFLOAT)
 #define HT_BINDING_CUT_RECORD_TEXELS 16  // ht-cut: GpuScene::cutRecord (R32G32B32A32_SFLOAT)
 #define HT_BINDING_CUT_LOOKUP_TEXELS 17  // ht-cut: EnvCut::lookup (R32_UINT)
+// The spheres and their BVH again as texel views, for the same gathers:
+#define HT_BINDING_SPHERE_TEXELS 18    // centre and radius per sphere (R32G32B32A32_SFLOAT)
+#define HT_BINDING_BVH_NODE_TEXELS 19  // GpuBvhNode[] as two texels each (R32G32B32A32_UINT)
+#define HT_BINDING_BVH_ORDER_TEXELS 20 // the BVH's sphere indices (R32_UINT)
 #define HT_BVH_LEAF_SIZE 4       // spheres per leaf, at most (kBvhLeafSize)
-#define HT_BINDING_COUNT 18
+#define HT_BINDING_COUNT 21
 
 // Chunked arrays: element i lives in chunk i >> SHIFT at i & (2^SHIFT - 1).
 #define HT_MAX_CHUNKS 128
@@ -94,6 +98,11 @@
 #define HT_FLAG_BRDF_TABLE 4u
 #define HT_FLAG_SPHERE_SEQUENCE 8u
 #define HT_MAX_CAPS 16
+// capSpheres' passes over the BVH: pass p visits the leaves that may hold a
+// sphere whose sine reaches HT_CAP_FIRST_FLOOR / 2^p and that no earlier
+// pass visited; the last visits the rest (kCapFloors).
+#define HT_CAP_PASSES 5
+#define HT_CAP_FIRST_FLOOR 0.25
 #define HT_MAX_ORDER 13  // healpix::kMaxOrder
 #define HT_MAX_BUDGET_REFINEMENTS 24
 #define HT_MAX_WALK_LEVEL 24  // ht*: deepest (virtual) level of the walk, HtOptions::maxLevel

@@ -9,6 +9,8 @@
 #extension GL_EXT_control_flow_attributes : require
 #extension GL_KHR_shader_subgroup_vote : require
 
+// The caps a point keeps (caps.glsl's selection).
+#define HT_CAP_LIST HT_CUT_MAX_CAPS
 #include "pixel.glsl"
 #include "cut.glsl"
 

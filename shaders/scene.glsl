@@ -90,7 +90,7 @@ int sphereHit(Ray ray, float tMin, inout float tMax, bool first) {
   float t;
   if (scene.bvhNodeCount == 0u) {
     for (uint i = 0u; i < scene.sphereCount; ++i)
-      if (hitSphere(spheres[i], ray, tMin, tMax, t)) {
+      if (hitSphere(sphereShape(i), ray, tMin, tMax, t)) {
         tMax = t;
         best = int(i);
         if (first) return best;
@@ -101,7 +101,7 @@ int sphereHit(Ray ray, float tMin, inout float tMax, bool first) {
   precise vec3 inv = 1.0 / ray.dir;
   uint node = 0u;
   while (node < scene.bvhNodeCount) {
-    GpuBvhNode n = bvhNodes[node];
+    GpuBvhNode n = bvhNode(node);
     if (!rayBox(n, ray.origin, inv, tMax)) {
       node = n.skip;
       continue;
@@ -111,8 +111,8 @@ int sphereHit(Ray ray, float tMin, inout float tMax, bool first) {
       continue;
     }
     for (uint k = n.leaf >> 3; k < (n.leaf >> 3) + (n.leaf & 7u); ++k) {
-      const int i = int(bvhOrder[k]);
-      if (hitSphere(spheres[i], ray, tMin, limit, t) && (t < tMax || (t == tMax && i < best))) {
+      const int i = int(bvhSphere(k));
+      if (hitSphere(sphereShape(uint(i)), ray, tMin, limit, t) && (t < tMax || (t == tMax && i < best))) {
         tMax = t;
         best = i;
         if (first) return best;
@@ -134,14 +134,14 @@ bool intersectScene(Ray ray, float tMin, float tMax, out Hit hit) {
   hit.planar = false;
   const int sphere = sphereHit(ray, tMin, tMax, false);
   if (sphere >= 0) {
-    GpuSphere s = spheres[sphere];
+    GpuSphere s = sphereShape(uint(sphere));
     any = true;
     hit.t = tMax;
     precise vec3 p = ray.origin + tMax * ray.dir;
     hit.position = p;
     precise vec3 outward = p - s.center;
     hit.normal = normalize3(outward);
-    hit.material = s.material;
+    hit.material = spheres[sphere].material;
     hit.planar = false;
   }
   for (uint i = 0u; i < scene.planeCount; ++i) {

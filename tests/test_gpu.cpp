@@ -164,7 +164,10 @@ TEST(GpuShaders, InterfaceMatchesCommonHeader) {
         case HT_BINDING_FRONTIER_BINS_TEXELS:
         case HT_BINDING_CUT_TREE_TEXELS:
         case HT_BINDING_CUT_RECORD_TEXELS:
-        case HT_BINDING_CUT_LOOKUP_TEXELS: EXPECT_EQ(b.kind, vk::BindingKind::UniformTexel); break;
+        case HT_BINDING_CUT_LOOKUP_TEXELS:
+        case HT_BINDING_SPHERE_TEXELS:
+        case HT_BINDING_BVH_NODE_TEXELS:
+        case HT_BINDING_BVH_ORDER_TEXELS: EXPECT_EQ(b.kind, vk::BindingKind::UniformTexel); break;
         default: ADD_FAILURE() << "unexpected binding " << b.binding;
       }
     }
@@ -789,22 +792,30 @@ size_t differingPixels(const GpuRenderResult& a, const GpuRenderResult& b) {
 
 // The large arrays read through texel views or through device addresses
 // (maps too large for the views): the same images and counts.
+// The test scene, and the sphere field for the spheres' BVH and the caps'
+// selection through it.
 TEST(GpuRenderTilesSlow, TexelViewsAndDeviceAddressesGiveTheSameImage) {
   GpuOptions addresses = gpuOptions();
   addresses.texelViews = false;
   GpuRenderer a(gpuOptions()), b(addresses);
-  a.setScene(testScene());
-  b.setScene(testScene());
-  for (Method m : {Method::Mis, Method::HtVis, Method::HtBiased, Method::HtFrontier, Method::Ris, Method::HtCut}) {
-    SCOPED_TRACE(methodName(m));
-    const RenderSettings rs = settings(m, 8, 7, 40, 20);
-    const GpuRenderResult ga = a.render(rs), gb = b.render(rs);
-    EXPECT_TRUE(a.texelViews());
-    EXPECT_FALSE(b.texelViews());
-    EXPECT_GT(ga.result.shadedPixels, 0u);
-    EXPECT_EQ(ga.result.counters.directions, gb.result.counters.directions);
-    EXPECT_EQ(ga.result.counters.htNodes, gb.result.counters.htNodes);
-    EXPECT_EQ(differingPixels(ga, gb), 0u);
+  Scene field = readSceneFile(kData + "/scenes/stress/sphere-field.json");
+  field.environmentDesc.nside = 32;
+  loadEnvironment(field);
+  ASSERT_FALSE(field.sphereBvh.nodes.empty());
+  for (const Scene* scene : {&testScene(), static_cast<const Scene*>(&field)}) {
+    a.setScene(*scene);
+    b.setScene(*scene);
+    for (Method m : {Method::Mis, Method::HtVis, Method::HtBiased, Method::HtFrontier, Method::Ris, Method::HtCut}) {
+      SCOPED_TRACE(methodName(m));
+      const RenderSettings rs = settings(m, 8, 7, 40, 20);
+      const GpuRenderResult ga = a.render(rs), gb = b.render(rs);
+      EXPECT_TRUE(a.texelViews());
+      EXPECT_FALSE(b.texelViews());
+      EXPECT_GT(ga.result.shadedPixels, 0u);
+      EXPECT_EQ(ga.result.counters.directions, gb.result.counters.directions);
+      EXPECT_EQ(ga.result.counters.htNodes, gb.result.counters.htNodes);
+      EXPECT_EQ(differingPixels(ga, gb), 0u);
+    }
   }
   expectNoValidationMessages();
 }
