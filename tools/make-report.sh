@@ -45,7 +45,7 @@ STRESS_WIDTH=${STRESS_WIDTH:-80}
 STRESS_HEIGHT=${STRESS_HEIGHT:-40}
 STRESS_SPP=${STRESS_SPP:-16}
 STRESS_REF_SPP=${STRESS_REF_SPP:-1024}
-STRESS_RUNS=${STRESS_RUNS:-3}    # their renders take milliseconds: the fastest of several
+STRESS_RUNS=${STRESS_RUNS:-5}    # their renders take milliseconds: the fastest of several
 SCALING_METHODS=${SCALING_METHODS:-mis,ht-vis,ht-frontier,ht-cut}
 
 start=$(date +%s)
