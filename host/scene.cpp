@@ -361,13 +361,15 @@ bool usesBvh(const Scene& scene) {
   return !scene.sphereBvh.nodes.empty() && scene.sphereBvh.spheres == scene.spheres.size();
 }
 
-// capSpheres' floors on the sines, pass by pass, halving from
-// HT_CAP_FIRST_FLOOR (shaders/common.h); the last, 0, visits every box that
-// may rank. A high first floor finds the near spheres first, whose k-th
-// sine then prunes the far boxes.
+// capSpheres' floors on the sines, pass by pass, a quarter of the one
+// before from HT_CAP_FIRST_FLOOR (shaders/common.h); the last, 0, visits
+// every box that may rank. A high first floor finds the near spheres first,
+// whose k-th sine then prunes the far boxes; halving instead took more
+// passes, whose walks over the inner nodes ran past llvmpipe's loop limit
+// with 16 caps among 8192 spheres.
 constexpr auto kCapFloors = [] {
   std::array<float, HT_CAP_PASSES> floors{};
-  for (int p = 0; p + 1 < HT_CAP_PASSES; ++p) floors[size_t(p)] = float(HT_CAP_FIRST_FLOOR) / float(1 << p);
+  for (int p = 0; p + 1 < HT_CAP_PASSES; ++p) floors[size_t(p)] = float(HT_CAP_FIRST_FLOOR) / float(1 << (2 * p));
   return floors;
 }();
 

@@ -126,8 +126,8 @@ uint capSpheresIn(vec3 origin, vec3 normal, uint caps) {
     // leaves the passes before left for their floors.
     float above = 2.0;
     for (uint pass = 0u; pass < uint(HT_CAP_PASSES); ++pass) {
-      precise float halved = float(HT_CAP_FIRST_FLOOR) / float(1u << pass);
-      const float floorSine = pass + 1u == uint(HT_CAP_PASSES) ? 0.0 : halved;
+      precise float quartered = float(HT_CAP_FIRST_FLOOR) / float(1u << (2u * pass));
+      const float floorSine = pass + 1u == uint(HT_CAP_PASSES) ? 0.0 : quartered;
       float least = count == k ? max(floorSine, capSineAt(k - 1u)) : floorSine;
       uint node = 0u;
       while (node < scene.bvhNodeCount) {

@@ -99,9 +99,9 @@
 #define HT_FLAG_SPHERE_SEQUENCE 8u
 #define HT_MAX_CAPS 16
 // capSpheres' passes over the BVH: pass p visits the leaves that may hold a
-// sphere whose sine reaches HT_CAP_FIRST_FLOOR / 2^p and that no earlier
+// sphere whose sine reaches HT_CAP_FIRST_FLOOR / 4^p and that no earlier
 // pass visited; the last visits the rest (kCapFloors).
-#define HT_CAP_PASSES 5
+#define HT_CAP_PASSES 4
 #define HT_CAP_FIRST_FLOOR 0.25
 #define HT_MAX_ORDER 13  // healpix::kMaxOrder
 #define HT_MAX_BUDGET_REFINEMENTS 24
@@ -373,7 +373,7 @@ struct GpuPixel {
   uint status;      // HT_PIXEL_DONE, HT_PIXEL_LOOPS_CUT
 };
 #define HT_PIXEL_DONE 1u       // the estimate is complete
-#define HT_PIXEL_LOOPS_CUT 2u  // the driver ended a loop early: this dispatch's results are wrong
+#define HT_PIXEL_LOOPS_CUT 2u  // the driver ended a loop early in this batch or an earlier one of the pass: the results are wrong
 
 // Test only: one accepted HT sample (GpuPush::htSampleLog).
 struct GpuHtSample {
@@ -430,7 +430,7 @@ struct GpuPixelState {
   uint htNodes;
   uint done;        // 1: the estimate is complete
   uint samplerSeed; // the pixel's sample points (PixelSampler's seed)
-  uint pad;
+  uint loopsCut;    // 1: the driver ended a loop early in a batch of this pass
   // ht*: where the stackless traversal stands (ht.glsl).
   uint htSeed;
   uint htFace;

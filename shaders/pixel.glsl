@@ -77,7 +77,7 @@ bool pixelStart(out PixelJob job) {
     gPixel.htNodes = 0u;
     gPixel.done = 0u;
     gPixel.samplerSeed = rngNextUint(gPixel.rng);  // estimateDirect's first draw
-    gPixel.pad = 0u;
+    gPixel.loopsCut = 0u;
     gPixel.htResume = 0u;
     gPixel.pad2 = 0u;
     gPixel.htResumeI = 0ul;
@@ -109,7 +109,9 @@ bool loopsWereCut() {
 }
 
 // Stores the state for the next batch and the pixel's result; `estimate`
-// counts once the state is done.
+// counts once the state is done. A loop cut short stays in the state, so
+// that the last batch of a submission, the one the host reads, reports a
+// cut in any batch before it.
 void pixelEnd(PixelJob job, vec3 estimate) {
   GpuPixel result;
   result.radiance = job.background;
@@ -118,9 +120,12 @@ void pixelEnd(PixelJob job, vec3 estimate) {
   result.shadowRays = 0u;
   result.htNodes = 0u;
   bool done = true;
+  bool cut = loopsWereCut() || job.cut;
   if (!job.shade) {
     pc.pixelState.s[job.slot].done = 1u;  // so that the later batches skip it
   } else {
+    cut = cut || gPixel.loopsCut != 0u;
+    gPixel.loopsCut = cut ? 1u : 0u;
     gPixel.shadowRays = gShadowRays;
     pc.pixelState.s[job.slot] = gPixel;
     done = gPixel.done != 0u;
@@ -130,7 +135,6 @@ void pixelEnd(PixelJob job, vec3 estimate) {
     result.shadowRays = gPixel.shadowRays;
     result.htNodes = gPixel.htNodes;
   }
-  bool cut = loopsWereCut() || job.cut;
   result.status = (done ? HT_PIXEL_DONE : 0u) | (cut ? HT_PIXEL_LOOPS_CUT : 0u);
   pixels[job.slot] = result;
 }

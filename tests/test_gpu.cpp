@@ -1011,6 +1011,33 @@ TEST(GpuBatches, LoopsCutShortAreRedone) {
 }
 
 
+// A pixel whose loops the driver cuts in one batch of a submission and not
+// in the batches after it still reports the cut (the state keeps it): a
+// field of 20000 spheres, whose first batch chooses 16 caps per point
+// through the BVH, renders right or ends with the driver's one-line error,
+// never with non-finite pixels (llvmpipe: the error).
+TEST(GpuBatches, ACutInAnEarlierBatchIsReported) {
+  Scene scene = readSceneFile(kData + "/scenes/stress/sphere-field.json");
+  const int side = 142;
+  scene.spheres.clear();
+  for (int i = 0; i < side * side; ++i)
+    scene.spheres.push_back({glm::vec3(float(i % side) - 0.5f * float(side - 1), 0.4f, -float(i / side)), 0.4f, 0});
+  scene.sphereBvh = buildBvh(scene.spheres);
+  scene.camera.lookAt = glm::vec3(0.0f, 0.0f, -0.5f * float(side));
+  loadEnvironment(scene);
+  GpuRenderer gpu(gpuOptions(true));
+  gpu.setScene(scene);
+  const RenderSettings rs = settings(Method::HtFrontier, 16, 3, 32, 16);
+  try {
+    const GpuRenderResult g = gpu.render(rs);
+    for (const glm::vec3& p : g.result.image.pixels) EXPECT_TRUE(std::isfinite(p.x + p.y + p.z));
+    EXPECT_EQ(gpu.device().name.find("llvmpipe"), std::string::npos) << "llvmpipe cut no loop";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("ended a shader loop early"), std::string::npos) << e.what();
+  }
+  expectNoValidationMessages();
+}
+
 // ---------------------------------------------------------------- ht-frontier
 
 // ht-frontier in the fp64 shader draws the CPU's directions: its tables
