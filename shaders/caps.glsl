@@ -30,35 +30,41 @@ uint capAt(uint j) { return j * kCapInvocations + gl_LocalInvocationIndex; }
 #define HT_CAP_SINE(j) sCapSine[capAt(j)]
 #define HT_CAP_INDEX(j) sCapSphere[capAt(j)]
 #endif
-// Entry j at an index not known when compiling: in registers, one select
-// per entry.
-#if HT_CAP_LIST <= 8
+
+// Entry j where j is not known when compiling (in registers, one select
+// per entry): its sine, its sphere (capSphere(j): the j-th sphere
+// capSpheres chose, in increasing index order once it is done), and both
+// set.
 float capSineAt(uint j) {
+#if HT_CAP_LIST <= 8
   float v = gCapSine[0];
   [[unroll]] for (uint e = 1u; e < HT_CAP_LIST; ++e) v = e == j ? gCapSine[e] : v;
   return v;
+#else
+  return sCapSine[capAt(j)];
+#endif
 }
 uint capSphere(uint j) {
+#if HT_CAP_LIST <= 8
   uint v = gCapIndex[0];
   [[unroll]] for (uint e = 1u; e < HT_CAP_LIST; ++e) v = e == j ? gCapIndex[e] : v;
   return v;
+#else
+  return sCapSphere[capAt(j)];
+#endif
 }
 void capSet(uint j, float sine, uint sphere) {
+#if HT_CAP_LIST <= 8
   [[unroll]] for (uint e = 0u; e < HT_CAP_LIST; ++e)
     if (e == j) {
       gCapSine[e] = sine;
       gCapIndex[e] = sphere;
     }
-}
 #else
-float capSineAt(uint j) { return sCapSine[capAt(j)]; }
-uint capSphere(uint j) { return sCapSphere[capAt(j)]; }
-void capSet(uint j, float sine, uint sphere) {
   sCapSine[capAt(j)] = sine;
   sCapSphere[capAt(j)] = sphere;
-}
 #endif
-// capSphere(j): the j-th sphere capSpheres chose, in increasing index order.
+}
 
 // capRank: the sine of the sphere's angular radius from `origin`; false at
 // the origin or wholly below the plane through it.
