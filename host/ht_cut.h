@@ -50,7 +50,7 @@
 
 namespace ht {
 
-class Rng;
+struct Rng;
 
 constexpr int kCutMaxLevel = HT_CUT_MAX_LEVEL;
 // The deepest level whose nodes a point weighs: a cut node's children.

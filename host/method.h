@@ -27,7 +27,7 @@ struct GpuPush;
 }
 class GpuMethodState;
 class PixelSampler;
-class Rng;
+struct Rng;
 struct EstimateCounters;
 struct MemoryInputs;
 struct MethodTables;
