@@ -32,26 +32,34 @@ uint capAt(uint j) { return j * kCapInvocations + gl_LocalInvocationIndex; }
 #endif
 
 // Entry j where j is not known when compiling (in registers, one select
-// per entry): its sine, its sphere (capSphere(j): the j-th sphere
-// capSpheres chose, in increasing index order once it is done), and both
-// set.
-float capSineAt(uint j) {
+// per entry): its sine and its sphere (capSphere(j): the j-th sphere
+// capSpheres chose, in increasing index order once it is done); capSet
+// sets both.
+void capEntry(uint j, out float sine, out uint sphere) {
 #if HT_CAP_LIST <= 8
-  float v = gCapSine[0];
-  [[unroll]] for (uint e = 1u; e < HT_CAP_LIST; ++e) v = e == j ? gCapSine[e] : v;
-  return v;
+  sine = gCapSine[0];
+  sphere = gCapIndex[0];
+  [[unroll]] for (uint e = 1u; e < HT_CAP_LIST; ++e)
+    if (e == j) {
+      sine = gCapSine[e];
+      sphere = gCapIndex[e];
+    }
 #else
-  return sCapSine[capAt(j)];
+  sine = sCapSine[capAt(j)];
+  sphere = sCapSphere[capAt(j)];
 #endif
 }
+float capSineAt(uint j) {
+  float sine;
+  uint sphere;
+  capEntry(j, sine, sphere);
+  return sine;
+}
 uint capSphere(uint j) {
-#if HT_CAP_LIST <= 8
-  uint v = gCapIndex[0];
-  [[unroll]] for (uint e = 1u; e < HT_CAP_LIST; ++e) v = e == j ? gCapIndex[e] : v;
-  return v;
-#else
-  return sCapSphere[capAt(j)];
-#endif
+  float sine;
+  uint sphere;
+  capEntry(j, sine, sphere);
+  return sphere;
 }
 void capSet(uint j, float sine, uint sphere) {
 #if HT_CAP_LIST <= 8
@@ -101,7 +109,10 @@ bool capBefore(float sine, uint i, float entrySine, uint entryIndex) {
 void capConsider(uint i, vec3 origin, vec3 normal, uint k, inout uint count) {
   float sine;
   if (!capRank(sphereShape(i), origin, normal, sine)) return;
-  if (count == k && !capBefore(sine, i, capSineAt(k - 1u), capSphere(k - 1u))) return;
+  float lastSine;
+  uint lastSphere;
+  capEntry(k - 1u, lastSine, lastSphere);
+  if (count == k && !capBefore(sine, i, lastSine, lastSphere)) return;
   // Every entry it precedes moves down one place; it takes the first of them.
   uint at = count == k ? k - 1u : count;
   [[unroll]] for (uint j = HT_CAP_LIST - 1u; j > 0u; --j) {
