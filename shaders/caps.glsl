@@ -109,10 +109,12 @@ bool capBefore(float sine, uint i, float entrySine, uint entryIndex) {
 void capConsider(uint i, vec3 origin, vec3 normal, uint k, inout uint count) {
   float sine;
   if (!capRank(sphereShape(i), origin, normal, sine)) return;
-  float lastSine;
-  uint lastSphere;
-  capEntry(k - 1u, lastSine, lastSphere);
-  if (count == k && !capBefore(sine, i, lastSine, lastSphere)) return;
+  if (count == k) {
+    float lastSine;
+    uint lastSphere;
+    capEntry(k - 1u, lastSine, lastSphere);
+    if (!capBefore(sine, i, lastSine, lastSphere)) return;
+  }
   // Every entry it precedes moves down one place; it takes the first of them.
   uint at = count == k ? k - 1u : count;
   [[unroll]] for (uint j = HT_CAP_LIST - 1u; j > 0u; --j) {
